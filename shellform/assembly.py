@@ -1,0 +1,205 @@
+"""Assembly of effects into one global residual and sparse tangent.
+
+The :class:`System` owns the DOF partition (free, fixed, prescribed) and the
+sparsity pattern, both computed once. Each call to :meth:`System.tangent`
+only evaluates the effects' Hessian values and scatters them into the CSR data
+array with one ``np.bincount``: no Python loop over members.
+
+Sign conventions
+----------------
+Total potential ``Pi(q, lam) = sum(E_internal) + sum(E_dead) + lam * sum(E_scaled)``.
+The residual is its gradient, ``r = f_int - f_ext``; equilibrium is
+``r[free] = 0`` and the reactions (forces the supports exert on the
+structure) are ``r[constrained]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from .effects import AxialBar, Effect, Rope, gravity_effect, nodal_load_effects
+from .errors import ModelError
+from .model import Structure
+
+
+class _Pattern:
+    """CSR pattern of a set of COO triplets, with the map from triplet to CSR slot."""
+
+    def __init__(self, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]):
+        n_rows, n_cols = shape
+        key = rows.astype(np.int64) * n_cols + cols
+        unique, self.slot = np.unique(key, return_inverse=True)
+        self.indices = (unique % n_cols).astype(np.int32)
+        row_of = unique // n_cols
+        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(row_of, minlength=n_rows))]).astype(np.int32)
+        self.nnz = len(unique)
+        self.shape = shape
+
+    def matrix(self, vals: np.ndarray) -> sp.csr_matrix:
+        data = np.bincount(self.slot, weights=vals, minlength=self.nnz)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+
+
+class System:
+    """The global equilibrium problem of a structure with a chosen set of effects.
+
+    Parameters
+    ----------
+    structure : Structure
+        Nodes, supports and prescribed motion (members and loads enter only
+        through ``effects``).
+    effects : sequence of Effect
+        The energy terms to sum; nothing else is evaluated.
+    check : bool
+        Check that every connected part is restrained against rigid translation.
+    """
+
+    def __init__(self, structure: Structure, effects: Sequence[Effect], check: bool = True):
+        self.structure = structure
+        self.effects = tuple(effects)
+        self.n_dof = structure.n_dof
+        for e in self.effects:
+            if e.n_dof != self.n_dof:
+                raise ModelError(f"effect {e.name!r} was built for {e.n_dof} DOFs, the structure has {self.n_dof}")
+        if check:
+            structure.check_supports()
+        self.q_ref = structure.reference_state()
+        constrained = structure.constrained_mask
+        self.free = np.flatnonzero(~constrained)
+        self.constrained = np.flatnonzero(constrained)
+        self.prescribed = structure.prescribed_dofs
+        self.direction = structure.prescribed_direction
+        if self.free.size == 0:
+            raise ModelError("every DOF is constrained: there is nothing to solve for")
+
+        rows, cols = self._pattern_triplets()
+        self._full = _Pattern(rows, cols, (self.n_dof, self.n_dof))
+        free_index = np.full(self.n_dof, -1, dtype=np.int64)
+        free_index[self.free] = np.arange(self.free.size)
+        self._ff_mask = (free_index[rows] >= 0) & (free_index[cols] >= 0)
+        n_f = self.free.size
+        self._ff = _Pattern(free_index[rows[self._ff_mask]], free_index[cols[self._ff_mask]], (n_f, n_f))
+
+    # -- construction --------------------------------------------------------------
+    def _pattern_triplets(self):
+        rows, cols = [], []
+        for e in self.effects:
+            r, c = e.hessian_pattern()
+            rows.append(r)
+            cols.append(c)
+        # the diagonal is always in the pattern so that a regularising shift
+        # never changes the structure of the matrix
+        diag = np.arange(self.n_dof, dtype=np.int64)
+        rows.append(diag)
+        cols.append(diag)
+        return np.concatenate(rows), np.concatenate(cols)
+
+    # -- states ---------------------------------------------------------------------
+    @property
+    def n_free(self) -> int:
+        return self.free.size
+
+    def state(self, u_free: np.ndarray | None = None, mu: float = 0.0, base: np.ndarray | None = None) -> np.ndarray:
+        """Full DOF vector from free values and the prescribed-displacement parameter ``mu``.
+
+        Constrained DOFs take ``q_ref + mu * direction``; free DOFs take
+        ``u_free`` or, when it is None, their value in ``base`` (default ``q_ref``).
+        """
+        q = np.array(self.q_ref if base is None else base, dtype=float, copy=True)
+        q[self.constrained] = self.q_ref[self.constrained] + mu * self.direction[self.constrained]
+        if u_free is not None:
+            q[self.free] = u_free
+        return q
+
+    # -- evaluation -----------------------------------------------------------------------
+    def _factor(self, e: Effect, lam: float) -> float:
+        return lam if e.scales_with_load else 1.0
+
+    def energy(self, q: np.ndarray, lam: float = 1.0) -> float:
+        """Total potential ``Pi(q, lam)``."""
+        return float(sum(self._factor(e, lam) * e.energy(q) for e in self.effects))
+
+    def residual(self, q: np.ndarray, lam: float = 1.0) -> np.ndarray:
+        """Gradient of the total potential: ``f_int(q) - f_ext(lam)``, all DOFs."""
+        r = np.zeros(self.n_dof)
+        for e in self.effects:
+            r += self._factor(e, lam) * e.gradient(q)
+        return r
+
+    def external_force(self, lam: float = 1.0) -> np.ndarray:
+        """Applied forces at load factor ``lam`` (dead loads in full, scaled loads times ``lam``)."""
+        f = np.zeros(self.n_dof)
+        for e in self.effects:
+            if e.is_external:
+                f -= self._factor(e, lam) * e.gradient(self.q_ref)
+        return f
+
+    def load_vector(self) -> np.ndarray:
+        """Reference load ``f_ref`` (``-d residual / d lam``): the sum of the scaled loads."""
+        f = np.zeros(self.n_dof)
+        for e in self.effects:
+            if e.scales_with_load:
+                f -= e.gradient(self.q_ref)
+        return f
+
+    def _hessian_vals(self, q, mask=None):
+        vals = [e.hessian_values(q) for e in self.effects]
+        vals.append(np.zeros(self.n_dof))
+        vals = np.concatenate(vals)
+        return vals if mask is None else vals[mask]
+
+    def tangent(self, q: np.ndarray) -> sp.csr_matrix:
+        """Hessian of the total potential over all DOFs (CSR).
+
+        Loads are conservative and constant, so the tangent does not depend on
+        the load factor.
+        """
+        return self._full.matrix(self._hessian_vals(q))
+
+    def tangent_free(self, q: np.ndarray) -> sp.csr_matrix:
+        """Tangent restricted to the free DOFs (CSR), assembled directly."""
+        return self._ff.matrix(self._hessian_vals(q, self._ff_mask))
+
+    def reactions(self, q: np.ndarray, lam: float = 1.0) -> np.ndarray:
+        """Forces the supports exert on the structure, all DOFs (zero where free)."""
+        r = self.residual(q, lam)
+        out = np.zeros(self.n_dof)
+        out[self.constrained] = r[self.constrained]
+        return out
+
+    def member_results(self, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+        """Per-member output of every effect that reports any, keyed by effect label."""
+        out = {}
+        for e in self.effects:
+            res = e.member_results(q)
+            if res:
+                out[getattr(e, "label", e.name)] = res
+        return out
+
+
+def member_effects(structure: Structure) -> list[Effect]:
+    """One effect per member group, of the group's kind."""
+    kinds = {"bar": AxialBar, "rope": Rope}
+    effects = []
+    for g in structure.groups:
+        if g.kind not in kinds:
+            raise ModelError(f"member group {g.name!r}: unknown kind {g.kind!r}; expected one of {sorted(kinds)}")
+        e = kinds[g.kind](structure.n_dof, g.connectivity, g.EA, g.rest_length)
+        e.label = g.name
+        effects.append(e)
+    return effects
+
+
+def build_system(structure: Structure, gravity_scaled: bool = False, check: bool = True) -> System:
+    """A System with the effects the structure calls for.
+
+    Members give axial or rope effects, load cases give constant forces, and
+    self-weight is included only when ``structure.gravity`` is set.
+    """
+    effects = member_effects(structure) + nodal_load_effects(structure)
+    if structure.gravity is not None:
+        effects.append(gravity_effect(structure, scales_with_load=gravity_scaled))
+    return System(structure, effects, check=check)

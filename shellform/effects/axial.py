@@ -1,0 +1,112 @@
+"""Axial two-node members: elastic bars and tension-only ropes.
+
+Strain measure: engineering strain on the current length,
+``eps = (l - L) / L`` with ``l`` the current and ``L`` the rest length, and
+energy ``E = 1/2 EA L eps^2`` (the stretching energy of Eq. 1a of the
+gridshell paper). The axial force is ``N = EA eps`` and the member gradient and
+tangent are
+
+    dE/dx_b = N n,        K_bb = (EA / L) n n^T + (N / l) (I - n n^T),
+
+with ``n`` the unit vector from node a to node b; the blocks for node a follow
+by the sign pattern ``[[K, -K], [-K, K]]``. The second term is the geometric
+stiffness that lets a hanging net carry load transverse to its ropes.
+
+A rope (MRA, Eqs. 3-4) has the same law while taut (``l > L``) and zero force
+and stiffness while slack.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Effect, element_pattern, scatter
+
+
+class _AxialMembers(Effect):
+    def __init__(self, n_dof: int, connectivity, EA, rest_length):
+        super().__init__(n_dof)
+        self.conn = np.asarray(connectivity, dtype=np.int64)
+        self.EA = np.asarray(EA, dtype=float)
+        self.L = np.asarray(rest_length, dtype=float)
+        self.dofs = np.concatenate([3 * self.conn[:, :1] + np.arange(3), 3 * self.conn[:, 1:] + np.arange(3)], axis=1)
+        self._pattern = element_pattern(self.dofs)
+
+    # force law -------------------------------------------------------------
+    def _active(self, length: np.ndarray) -> np.ndarray:
+        """Members that carry force at this length."""
+        return np.ones(length.shape, dtype=bool)
+
+    def _geometry(self, q):
+        d = q[self.dofs[:, 3:]] - q[self.dofs[:, :3]]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return d, length
+
+    def _force(self, length):
+        k = np.where(self._active(length), self.EA / self.L, 0.0)
+        return k * (length - self.L), k
+
+    # effect face -----------------------------------------------------------
+    def energy(self, q):
+        _, length = self._geometry(q)
+        N, k = self._force(length)
+        return 0.5 * float(np.sum(k * (length - self.L) ** 2))
+
+    def gradient(self, q):
+        d, length = self._geometry(q)
+        N, _ = self._force(length)
+        f = (N / length)[:, None] * d  # = N n, the pull of the member on node a
+        return scatter(self.n_dof, self.dofs, np.concatenate([-f, f], axis=1))
+
+    def hessian_pattern(self):
+        return self._pattern
+
+    def hessian_values(self, q):
+        d, length = self._geometry(q)
+        N, k = self._force(length)
+        n = d / length[:, None]
+        nn = n[:, :, None] * n[:, None, :]
+        K = (k - N / length)[:, None, None] * nn + (N / length)[:, None, None] * np.eye(3)
+        block = np.empty((len(K), 6, 6))
+        block[:, :3, :3] = K
+        block[:, 3:, 3:] = K
+        block[:, :3, 3:] = -K
+        block[:, 3:, :3] = -K
+        return block.ravel()
+
+    def member_results(self, q):
+        _, length = self._geometry(q)
+        N, _ = self._force(length)
+        return {"axial_force": N, "strain": (length - self.L) / self.L, "length": length}
+
+
+class AxialBar(_AxialMembers):
+    """Linear-elastic bars carrying tension and compression.
+
+    Parameters
+    ----------
+    n_dof : int
+        Size of the global DOF vector.
+    connectivity : array_like, shape (m, 2)
+        End nodes of each bar.
+    EA : array_like, shape (m,)
+        Axial stiffness [N].
+    rest_length : array_like, shape (m,)
+        Unstressed length [m].
+    """
+
+    name = "axial"
+
+
+class Rope(_AxialMembers):
+    """Tension-only ropes: the bar law while taut, no force and no stiffness while slack."""
+
+    name = "rope"
+
+    def _active(self, length):
+        return length > self.L
+
+    def member_results(self, q):
+        out = super().member_results(q)
+        out["slack"] = (out["length"] <= self.L).astype(np.int8)
+        return out

@@ -1,0 +1,82 @@
+"""The common face of every physical effect.
+
+An effect is one energy term of the total potential, vectorised over all the
+members that carry it. It exposes
+
+* ``energy(q) -> float``
+* ``gradient(q) -> ndarray (n_dof,)``
+* ``hessian_pattern() -> (rows, cols)``: fixed for the life of the effect,
+* ``hessian_values(q) -> vals``: in the order of ``hessian_pattern``,
+
+so that a :class:`~shellform.assembly.System` computes the sparsity pattern
+once and only scatters values afterwards. ``hessian(q)`` returns the COO
+triplets for convenience (tests, small problems).
+
+An effect that represents an applied load sets ``scales_with_load = True``; the
+System multiplies its contribution by the load factor of the analysis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Effect:
+    """Base class: one energy term with its gradient and sparse Hessian."""
+
+    #: short name used in scenes, messages and output
+    name: str = "effect"
+    #: multiply this effect by the analysis load factor (applied loads)
+    scales_with_load: bool = False
+    #: an applied load (constant force) rather than an internal energy
+    is_external: bool = False
+
+    def __init__(self, n_dof: int):
+        self.n_dof = int(n_dof)
+
+    def energy(self, q: np.ndarray) -> float:
+        raise NotImplementedError
+
+    def gradient(self, q: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def hessian_pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column indices of the Hessian entries (duplicates allowed)."""
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+
+    def hessian_values(self, q: np.ndarray) -> np.ndarray:
+        """Hessian entries in the order of :meth:`hessian_pattern`."""
+        return np.zeros(0)
+
+    def hessian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hessian as COO triplets ``(rows, cols, vals)``."""
+        rows, cols = self.hessian_pattern()
+        return rows, cols, self.hessian_values(q)
+
+    def member_results(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-member quantities for output (axial force, strain, ...); none by default."""
+        return {}
+
+
+def element_pattern(dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """COO pattern of dense element blocks.
+
+    Parameters
+    ----------
+    dofs : ndarray, shape (m, k)
+        Global DOF indices of each element.
+
+    Returns
+    -------
+    rows, cols : ndarray, shape (m * k * k,)
+        Indices in the order of a C-contiguous ``(m, k, k)`` value array.
+    """
+    m, k = dofs.shape
+    rows = np.broadcast_to(dofs[:, :, None], (m, k, k)).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], (m, k, k)).ravel()
+    return rows.astype(np.int64), cols.astype(np.int64)
+
+
+def scatter(n_dof: int, dofs: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Sum element vectors ``values`` (m, k) into a global vector at ``dofs`` (m, k)."""
+    return np.bincount(dofs.ravel(), weights=values.ravel(), minlength=n_dof)

@@ -1,0 +1,188 @@
+"""Static equilibrium by Newton's method with a backtracking line search."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .linear import SingularMatrixError, factorize
+
+
+@dataclass
+class StaticResult:
+    """Outcome of a static solve.
+
+    Attributes
+    ----------
+    q : ndarray
+        Final DOF vector (the last finite iterate when the solve failed).
+    success : bool
+        Whether the residual met the tolerance.
+    message : str
+        What happened, in words.
+    iterations : int
+        Newton iterations performed.
+    residual_norms : list of float
+        Norm of the free residual at each iterate (the first is the start).
+    tolerance : float
+        Residual norm that counts as converged.
+    lam, mu : float
+        Load factor and prescribed-displacement parameter of the solve.
+    reactions : ndarray
+        Support reactions at every DOF (zero where free).
+    regularised_steps : int
+        Steps where the tangent was singular or not a descent direction and a
+        diagonal shift was added.
+    wall_time_s : float
+    """
+
+    q: np.ndarray
+    success: bool
+    message: str
+    iterations: int
+    residual_norms: list[float] = field(default_factory=list)
+    tolerance: float = 0.0
+    lam: float = 1.0
+    mu: float = 0.0
+    reactions: np.ndarray | None = None
+    regularised_steps: int = 0
+    wall_time_s: float = 0.0
+
+    @property
+    def residual_norm(self) -> float:
+        return self.residual_norms[-1] if self.residual_norms else float("nan")
+
+
+def _shifted_solve(K, rhs, method, g=None, max_shifts=12):
+    """Solve ``K p = rhs``; add a growing diagonal shift when K is singular or,
+    for energy minimisation (``g`` given), when ``p`` is not a descent direction."""
+    diag = np.abs(K.diagonal())
+    base = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
+    shift = 0.0
+    for attempt in range(max_shifts + 1):
+        A = K if shift == 0.0 else K + sp.diags(np.full(K.shape[0], shift))
+        try:
+            p = factorize(A, method).solve(rhs)
+            if g is None or float(g @ p) < 0.0:
+                return p, attempt > 0
+        except SingularMatrixError:
+            pass
+        shift = base * 1e-8 if shift == 0.0 else shift * 100.0
+    raise SingularMatrixError("tangent is singular even with a diagonal shift of %.3g" % shift)
+
+
+def solve_static(
+    system,
+    q0: np.ndarray | None = None,
+    lam: float = 1.0,
+    mu: float = 0.0,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    max_iter: int = 100,
+    merit: str = "residual",
+    linear_solver: str = "direct",
+    max_backtracks: int = 30,
+) -> StaticResult:
+    """Find ``q`` with ``r(q, lam)[free] = 0`` by Newton's method.
+
+    Parameters
+    ----------
+    system : System
+        The assembled problem.
+    q0 : ndarray, optional
+        Starting state (all DOFs); constrained DOFs are overwritten with their
+        prescribed values. Defaults to the reference state.
+    lam : float
+        Load factor multiplying the scaled loads.
+    mu : float
+        Prescribed-displacement parameter.
+    rtol, atol : float
+        Converged when ``|r_free| <= rtol * scale + atol``, with ``scale`` the
+        larger of the external-force norm and the reaction norm.
+    max_iter : int
+        Newton iterations before giving up.
+    merit : {"residual", "energy"}
+        Line-search merit function. ``"residual"`` (half the squared residual
+        norm) finds any equilibrium, stable or not. ``"energy"`` minimises the
+        total potential: directions that do not descend are regularised, so it
+        only finds stable equilibria but copes with slack ropes and mechanisms
+        stabilised by load.
+    linear_solver : {"direct", "amg", "auto"}
+        See :mod:`shellform.solvers.linear`.
+
+    Returns
+    -------
+    StaticResult
+    """
+    t0 = time.perf_counter()
+    if merit not in ("residual", "energy"):
+        raise ValueError(f"merit must be 'residual' or 'energy', got {merit!r}")
+    q = system.state(mu=mu, base=q0)
+    if not np.all(np.isfinite(q)):
+        bad = int(np.flatnonzero(~np.isfinite(q))[0])
+        raise ValueError(f"starting state has a non-finite value at DOF {bad} (node {bad // 3})")
+    free = system.free
+
+    def evaluate(qq):
+        r = system.residual(qq, lam)
+        return r, float(np.linalg.norm(r[free]))
+
+    ext = system.external_force(lam)
+    r, norm = evaluate(q)
+    norms = [norm]
+    n_reg = 0
+
+    def tolerance(rr):
+        scale = max(float(np.linalg.norm(ext)), float(np.linalg.norm(rr[system.constrained])))
+        return rtol * scale + atol
+
+    def result(success, message, it):
+        return StaticResult(
+            q=q, success=success, message=message, iterations=it, residual_norms=norms,
+            tolerance=tol, lam=lam, mu=mu, reactions=system.reactions(q, lam),
+            regularised_steps=n_reg, wall_time_s=time.perf_counter() - t0,
+        )
+
+    tol = tolerance(r)
+    if not np.isfinite(norm):
+        return result(False, "residual is not finite at the starting state", 0)
+    for it in range(1, max_iter + 1):
+        if norm <= tol:
+            return result(True, f"converged: |r| = {norm:.3e} <= {tol:.3e}", it - 1)
+        K = system.tangent_free(q)
+        rf = r[free]
+        try:
+            p, shifted = _shifted_solve(K, -rf, linear_solver, g=rf if merit == "energy" else None)
+        except SingularMatrixError as exc:
+            return result(False, f"iteration {it}: {exc}; the structure may be a mechanism at this state", it - 1)
+        n_reg += int(shifted)
+
+        # backtracking line search on the chosen merit function
+        if merit == "energy":
+            phi0 = system.energy(q, lam)
+            slope = float(rf @ p)
+        else:
+            phi0 = 0.5 * norm**2
+            slope = -2.0 * phi0
+        alpha = 1.0
+        for _ in range(max_backtracks):
+            q_try = q.copy()
+            q_try[free] += alpha * p
+            r_try, norm_try = evaluate(q_try)
+            if np.isfinite(norm_try):
+                phi = system.energy(q_try, lam) if merit == "energy" else 0.5 * norm_try**2
+                if np.isfinite(phi) and phi <= phi0 + 1e-4 * alpha * slope:
+                    break
+            alpha *= 0.5
+        else:
+            if not (np.isfinite(norm_try) and norm_try < norm):
+                return result(False, f"iteration {it}: line search found no decrease of the {merit} merit", it - 1)
+        q, r, norm = q_try, r_try, norm_try
+        norms.append(norm)
+        tol = tolerance(r)
+    if norm <= tol:
+        return result(True, f"converged: |r| = {norm:.3e} <= {tol:.3e}", max_iter)
+    return result(False, f"not converged in {max_iter} iterations: |r| = {norm:.3e} > tolerance {tol:.3e}", max_iter)
