@@ -82,7 +82,7 @@ def solve_static(
     rtol: float = 1e-10,
     atol: float = 1e-12,
     max_iter: int = 100,
-    merit: str = "residual",
+    merit: str = "energy",
     linear_solver: str = "direct",
     max_backtracks: int = 30,
 ) -> StaticResult:
@@ -101,10 +101,12 @@ def solve_static(
         Prescribed-displacement parameter.
     rtol, atol : float
         Converged when ``|r_free| <= rtol * scale + atol``, with ``scale`` the
-        larger of the external-force norm and the reaction norm.
+        larger of the external-force norm and the reaction norm, or when the
+        residual reaches the round-off floor of the tangent (reported in the
+        message), below which no iteration can go.
     max_iter : int
         Newton iterations before giving up.
-    merit : {"residual", "energy"}
+    merit : {"energy", "residual"}
         Line-search merit function. ``"residual"`` (half the squared residual
         norm) finds any equilibrium, stable or not. ``"energy"`` minimises the
         total potential: directions that do not descend are regularised, so it
@@ -135,9 +137,16 @@ def solve_static(
     norms = [norm]
     n_reg = 0
 
-    def tolerance(rr):
+    def tolerance(rr, K=None):
         scale = max(float(np.linalg.norm(ext)), float(np.linalg.norm(rr[system.constrained])))
-        return rtol * scale + atol
+        tol_ = rtol * scale + atol
+        if K is not None:
+            # round-off floor: a residual entry sums member forces of size
+            # stiffness x coordinate, each known to machine precision only;
+            # asking for less than this would never terminate on stiff members
+            floor = 10.0 * np.finfo(float).eps * np.linalg.norm(K.diagonal()) * float(np.abs(q).max())
+            tol_ = max(tol_, floor)
+        return tol_
 
     def result(success, message, it):
         return StaticResult(
@@ -149,10 +158,17 @@ def solve_static(
     tol = tolerance(r)
     if not np.isfinite(norm):
         return result(False, "residual is not finite at the starting state", 0)
+    def converged_message():
+        kind = "converged" if norm <= tolerance(r) else "converged to the round-off floor"
+        return f"{kind}: |r| = {norm:.3e} <= {tol:.3e}"
+
     for it in range(1, max_iter + 1):
         if norm <= tol:
-            return result(True, f"converged: |r| = {norm:.3e} <= {tol:.3e}", it - 1)
+            return result(True, converged_message(), it - 1)
         K = system.tangent_free(q)
+        tol = tolerance(r, K)
+        if norm <= tol:
+            return result(True, converged_message(), it - 1)
         rf = r[free]
         try:
             p, shifted = _shifted_solve(K, -rf, linear_solver, g=rf if merit == "energy" else None)
@@ -176,13 +192,18 @@ def solve_static(
                 phi = system.energy(q_try, lam) if merit == "energy" else 0.5 * norm_try**2
                 if np.isfinite(phi) and phi <= phi0 + 1e-4 * alpha * slope:
                     break
+                # close to a minimum the energy changes less than its round-off and
+                # cannot rank steps; the residual norm still can
+                flat = merit == "energy" and abs(phi - phi0) <= 1e3 * np.finfo(float).eps * (abs(phi0) + abs(slope))
+                if flat and norm_try < (1.0 - 1e-4 * alpha) * norm:
+                    break
             alpha *= 0.5
         else:
             if not (np.isfinite(norm_try) and norm_try < norm):
                 return result(False, f"iteration {it}: line search found no decrease of the {merit} merit", it - 1)
         q, r, norm = q_try, r_try, norm_try
         norms.append(norm)
-        tol = tolerance(r)
+        tol = max(tol, tolerance(r))
     if norm <= tol:
-        return result(True, f"converged: |r| = {norm:.3e} <= {tol:.3e}", max_iter)
+        return result(True, converged_message(), max_iter)
     return result(False, f"not converged in {max_iter} iterations: |r| = {norm:.3e} > tolerance {tol:.3e}", max_iter)

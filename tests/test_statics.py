@@ -1,0 +1,141 @@
+"""Static equilibrium: assembly consistency, the von Mises truss and the hanging chain."""
+
+import numpy as np
+import pytest
+from fd import fd_jacobian, relative_error
+from scipy.optimize import brentq
+
+import shellform as sf
+
+
+def von_mises(L=1.0, H=0.2, EA=1.0e4):
+    s = sf.Structure([[-L, 0, 0], [0, 0, H], [L, 0, 0]])
+    s.add_bars([[0, 1], [1, 2]], EA=EA)
+    s.fix([0, 2])
+    s.fix([1], "y")  # planar problem
+    s.add_load([1], [0, 0, -1.0])
+    return s
+
+
+def von_mises_load(theta, alpha, EA):
+    """Apex load at bar angle theta for the engineering strain measure.
+
+    Bar length L/cos(theta) against rest length L/cos(alpha):
+    N = EA (cos(alpha)/cos(theta) - 1), P = -2 N sin(theta).
+    """
+    return 2 * EA * np.sin(theta) * (1 - np.cos(alpha) / np.cos(theta))
+
+
+def test_tangent_is_the_derivative_of_the_residual():
+    rng = np.random.default_rng(3)
+    s = sf.Structure(rng.normal(size=(7, 3)))
+    s.add_bars([[0, 1], [1, 2], [2, 3], [3, 0], [1, 3]], EA=5.0)
+    s.add_ropes([[3, 4], [4, 5], [5, 6], [6, 0], [2, 5]], EA=3.0, slack=0.05, mass_per_length=2.0)
+    s.fix([0])
+    s.set_gravity()
+    s.add_load([4], [1.0, 2.0, 3.0])
+    system = sf.build_system(s)
+    q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
+    K = system.tangent(q).toarray()
+    assert relative_error(K, fd_jacobian(system.residual, q)) < 1e-7
+    Kff = system.tangent_free(q).toarray()
+    assert np.allclose(Kff, K[np.ix_(system.free, system.free)])
+
+
+def test_von_mises_rising_branch_matches_analytic_equilibrium():
+    L, H, EA = 1.0, 0.2, 1.0e4
+    alpha = np.arctan(H / L)
+    system = sf.build_system(von_mises(L, H, EA))
+    theta_cr = np.arccos(np.cos(alpha) ** (1 / 3))
+    P_cr = 2 * EA * np.sin(theta_cr) ** 3
+    q = None
+    for frac in (0.2, 0.5, 0.8, 0.95):
+        P = frac * P_cr
+        res = sf.solve_static(system, q0=q, lam=P)
+        assert res.success, res.message
+        q = res.q
+        # analytic apex height on the rising (pre-limit) branch
+        theta = brentq(lambda t: von_mises_load(t, alpha, EA) - P, theta_cr, alpha)
+        assert q[5] == pytest.approx(L * np.tan(theta), rel=1e-8)
+        # reactions balance the applied load
+        R = res.reactions.reshape(-1, 3)
+        assert R[:, 2].sum() == pytest.approx(P, rel=1e-8)
+        assert R[:, 0].sum() == pytest.approx(0.0, abs=1e-9 * P)
+        assert R[0, 0] == pytest.approx(-R[2, 0])
+
+
+def test_von_mises_beyond_limit_load_fails_clearly_or_jumps_to_inverted_state():
+    L, H, EA = 1.0, 0.2, 1.0e4
+    alpha = np.arctan(H / L)
+    theta_cr = np.arccos(np.cos(alpha) ** (1 / 3))
+    P = 1.2 * 2 * EA * np.sin(theta_cr) ** 3
+    res = sf.solve_static(sf.build_system(von_mises(L, H, EA)), lam=P)
+    assert np.all(np.isfinite(res.q))
+    if res.success:
+        # the only equilibria at this load are on the inverted branch
+        theta = np.arctan(res.q[5] / L)
+        assert theta < -alpha
+        assert von_mises_load(theta, alpha, EA) == pytest.approx(P, rel=1e-8)
+
+
+def catenary_chain(span=10.0, length=12.0, n=200, w=1.0, EA=1.0e8, start_stretch=1.01):
+    """A chain of n equal ropes hung between two supports.
+
+    The start is a parabola through the supports whose arc length is
+    ``start_stretch`` times the chain length, sampled at equal arc length so
+    that every rope starts equally (and slightly) taut.
+    """
+    s = sf.Structure(np.column_stack([np.linspace(0, span, n + 1), np.zeros(n + 1), np.zeros(n + 1)]))
+    conn = np.column_stack([np.arange(n), np.arange(1, n + 1)])
+    s.add_ropes(conn, EA=EA, rest_length=length / n, mass_per_length=w / 9.81)
+    s.fix([0, n])
+    s.set_gravity()
+
+    xf = np.linspace(0, span, 20 * n + 1)
+
+    def parabola(f):
+        z = -4 * f * xf * (span - xf) / span**2
+        return z, np.concatenate([[0], np.cumsum(np.hypot(np.diff(xf), np.diff(z)))])
+
+    f0 = brentq(lambda f: parabola(f)[1][-1] - start_stretch * length, 1e-3, span)
+    z, arc = parabola(f0)
+    s_target = np.linspace(0, arc[-1], n + 1)
+    q0 = np.column_stack([np.interp(s_target, arc, xf), np.zeros(n + 1), np.interp(s_target, arc, z)])
+    return s, q0.ravel()
+
+
+def test_hanging_chain_sag_matches_catenary():
+    span, length = 10.0, 12.0
+    s, q0 = catenary_chain(span, length)
+    res = sf.solve_static(sf.build_system(s), q0=q0, merit="energy")
+    assert res.success, res.message
+    a = brentq(lambda a: 2 * a * np.sinh(span / (2 * a)) - length, 0.1, 100.0)
+    sag_exact = a * (np.cosh(span / (2 * a)) - 1)
+    sag = -res.q.reshape(-1, 3)[:, 2].min()
+    assert abs(sag - sag_exact) / sag_exact < 5e-3
+    # and every rope is taut at equilibrium
+    forces = sf.build_system(s).member_results(res.q)
+    assert not np.any(next(iter(forces.values()))["slack"])
+
+
+def test_hanging_chain_reactions_carry_its_weight():
+    s, q0 = catenary_chain(n=50)
+    system = sf.build_system(s)
+    res = sf.solve_static(system, q0=q0, merit="energy")
+    assert res.success, res.message
+    weight = s.nodal_mass().sum() * 9.81
+    R = res.reactions.reshape(-1, 3)
+    # global balance holds to the accuracy of the free residual the solve reached
+    assert abs(R[:, 2].sum() - weight) <= np.sqrt(system.n_free) * res.tolerance
+    assert abs(R[:, 2].sum() - weight) < 1e-6 * weight
+    assert R[0, 2] == pytest.approx(R[-1, 2], rel=1e-6)
+    assert R[0, 0] == pytest.approx(-R[-1, 0], rel=1e-6)
+
+
+def test_newton_reports_failure_instead_of_nan():
+    s = von_mises()
+    system = sf.build_system(s)
+    res = sf.solve_static(system, lam=1.0, max_iter=1, rtol=1e-30, atol=0.0)
+    assert not res.success
+    assert "not converged" in res.message
+    assert np.all(np.isfinite(res.q))
