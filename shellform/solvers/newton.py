@@ -56,22 +56,14 @@ class StaticResult:
         return self.residual_norms[-1] if self.residual_norms else float("nan")
 
 
-def _shifted_solve(K, rhs, method, g=None, max_shifts=12):
-    """Solve ``K p = rhs``; add a growing diagonal shift when K is singular or,
-    for energy minimisation (``g`` given), when ``p`` is not a descent direction."""
+def _shift_sequence(K, rhs_norm, size, n_shifts=14):
+    """Diagonal shifts to try after the plain Newton step: the first one limits
+    the step to about a tenth of the model size (a trust region in disguise),
+    then they grow by factors of 10."""
     diag = np.abs(K.diagonal())
-    base = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
-    shift = 0.0
-    for attempt in range(max_shifts + 1):
-        A = K if shift == 0.0 else K + sp.diags(np.full(K.shape[0], shift))
-        try:
-            p = factorize(A, method).solve(rhs)
-            if g is None or float(g @ p) < 0.0:
-                return p, attempt > 0
-        except SingularMatrixError:
-            pass
-        shift = base * 1e-8 if shift == 0.0 else shift * 100.0
-    raise SingularMatrixError("tangent is singular even with a diagonal shift of %.3g" % shift)
+    base = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 0.0
+    first = max(1e-8 * base, rhs_norm / (0.1 * size), 1e-300)
+    return [0.0] + [first * 10.0**k for k in range(n_shifts)]
 
 
 def solve_static(
@@ -85,6 +77,7 @@ def solve_static(
     merit: str = "energy",
     linear_solver: str = "direct",
     max_backtracks: int = 30,
+    callback=None,
 ) -> StaticResult:
     """Find ``q`` with ``r(q, lam)[free] = 0`` by Newton's method.
 
@@ -114,6 +107,9 @@ def solve_static(
         stabilised by load.
     linear_solver : {"direct", "amg", "auto"}
         See :mod:`shellform.solvers.linear`.
+    callback : callable, optional
+        Called as ``callback(iteration, residual_norm)`` after every accepted
+        step (progress display).
 
     Returns
     -------
@@ -133,6 +129,7 @@ def solve_static(
         return r, float(np.linalg.norm(r[free]))
 
     ext = system.external_force(lam)
+    size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
     r, norm = evaluate(q)
     norms = [norm]
     n_reg = 0
@@ -158,6 +155,7 @@ def solve_static(
     tol = tolerance(r)
     if not np.isfinite(norm):
         return result(False, "residual is not finite at the starting state", 0)
+
     def converged_message():
         kind = "converged" if norm <= tolerance(r) else "converged to the round-off floor"
         return f"{kind}: |r| = {norm:.3e} <= {tol:.3e}"
@@ -170,40 +168,55 @@ def solve_static(
         if norm <= tol:
             return result(True, converged_message(), it - 1)
         rf = r[free]
-        try:
-            p, shifted = _shifted_solve(K, -rf, linear_solver, g=rf if merit == "energy" else None)
-        except SingularMatrixError as exc:
-            return result(False, f"iteration {it}: {exc}; the structure may be a mechanism at this state", it - 1)
-        n_reg += int(shifted)
-
-        # backtracking line search on the chosen merit function
-        if merit == "energy":
-            phi0 = system.energy(q, lam)
-            slope = float(rf @ p)
-        else:
-            phi0 = 0.5 * norm**2
-            slope = -2.0 * phi0
-        alpha = 1.0
-        for _ in range(max_backtracks):
-            q_try = q.copy()
-            q_try[free] += alpha * p
-            r_try, norm_try = evaluate(q_try)
-            if np.isfinite(norm_try):
-                phi = system.energy(q_try, lam) if merit == "energy" else 0.5 * norm_try**2
-                if np.isfinite(phi) and phi <= phi0 + 1e-4 * alpha * slope:
-                    break
-                # close to a minimum the energy changes less than its round-off and
-                # cannot rank steps; the residual norm still can
-                flat = merit == "energy" and abs(phi - phi0) <= 1e3 * np.finfo(float).eps * (abs(phi0) + abs(slope))
-                if flat and norm_try < (1.0 - 1e-4 * alpha) * norm:
-                    break
-            alpha *= 0.5
-        else:
-            if not (np.isfinite(norm_try) and norm_try < norm):
-                return result(False, f"iteration {it}: line search found no decrease of the {merit} merit", it - 1)
+        phi0 = system.energy(q, lam) if merit == "energy" else 0.5 * norm**2
+        accepted = False
+        singular = True
+        for shift in _shift_sequence(K, norm, size):
+            try:
+                A = K if shift == 0.0 else K + sp.diags(np.full(K.shape[0], shift))
+                p = factorize(A, linear_solver).solve(-rf)
+            except SingularMatrixError:
+                continue
+            singular = False
+            slope = float(rf @ p) if merit == "energy" else -2.0 * phi0
+            if slope >= 0.0:
+                continue  # not a descent direction of the energy: shift further
+            q_try, r_try, norm_try = _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks)
+            if q_try is not None:
+                accepted = True
+                n_reg += int(shift > 0.0)
+                break
+        if not accepted:
+            why = "the tangent is singular even with a large diagonal shift" if singular else (
+                f"no step decreased the {merit} merit, even with a large diagonal shift")
+            return result(False, f"iteration {it}: {why}; the structure may be a mechanism at this state", it - 1)
         q, r, norm = q_try, r_try, norm_try
         norms.append(norm)
+        if callback is not None:
+            callback(it, norm)
         tol = max(tol, tolerance(r))
     if norm <= tol:
         return result(True, converged_message(), max_iter)
     return result(False, f"not converged in {max_iter} iterations: |r| = {norm:.3e} > tolerance {tol:.3e}", max_iter)
+
+
+def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks):
+    """Backtracking (Armijo) along ``p``; returns (q, r, |r|) or (None, None, None)."""
+    free = system.free
+    alpha = 1.0
+    eps = np.finfo(float).eps
+    for _ in range(max_backtracks):
+        q_try = q.copy()
+        q_try[free] += alpha * p
+        r_try, norm_try = evaluate(q_try)
+        if np.isfinite(norm_try):
+            phi = system.energy(q_try, lam) if merit == "energy" else 0.5 * norm_try**2
+            if np.isfinite(phi) and phi <= phi0 + 1e-4 * alpha * slope:
+                return q_try, r_try, norm_try
+            # close to a minimum the energy changes less than its round-off and
+            # cannot rank steps; the residual norm still can
+            flat = merit == "energy" and abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope))
+            if flat and norm_try < (1.0 - 1e-4 * alpha) * norm:
+                return q_try, r_try, norm_try
+        alpha *= 0.5
+    return None, None, None

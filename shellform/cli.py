@@ -1,0 +1,62 @@
+"""The ``shellform`` command."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from importlib import resources
+from pathlib import Path
+
+from .errors import ShellformError
+
+DEFAULT_SCENE = "default"
+
+
+def _builtin_scene(name: str) -> Path:
+    path = resources.files("shellform") / "scenes" / f"{name}.toml"
+    if not path.is_file():
+        raise FileNotFoundError(name)
+    return Path(str(path))
+
+
+def _cmd_run(args) -> int:
+    from .pipeline import run_scene
+    from .scene import load_scene
+
+    path = Path(args.scene) if args.scene else _builtin_scene(DEFAULT_SCENE)
+    scene = load_scene(path)
+    progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    progress(f"scene: {path}")
+    summary = run_scene(scene, args.out, progress)
+    progress(f"results in {Path(args.out).resolve()} ({summary['wall_time_s']:.2f} s)")
+    return 0 if summary.get("converged", False) else 1
+
+
+def _cmd_schema(args) -> int:
+    from .schema import describe
+    from .scene import SCENE
+
+    print("\n".join(describe(SCENE)))
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="shellform", description="Form finding and post-buckling of gridshells.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run a scene and write results")
+    run.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
+    run.add_argument("--out", default="results", help="output directory (default: ./results)")
+    run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.set_defaults(func=_cmd_run)
+    schema = sub.add_parser("schema", help="print the scene reference (Markdown)")
+    schema.set_defaults(func=_cmd_schema)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except ShellformError as exc:
+        print(f"shellform: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
