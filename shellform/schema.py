@@ -80,7 +80,7 @@ def _array(path, value, shape_doc, ncol=None, integer=False):
         _fail(path, value, shape_doc)
     bad = np.argwhere(~np.isfinite(arr))
     if bad.size:
-        raise SceneError(f"{path}{list(bad[0])}", "value is not finite")
+        raise SceneError(f"{path}{[int(i) for i in bad[0]]}", "value is not finite")
     if integer:
         if np.any(arr != np.round(arr)):
             _fail(path, value, shape_doc + " of integers")

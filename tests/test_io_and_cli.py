@@ -1,0 +1,156 @@
+"""Export (read back with meshio), scenes and the shellform command end to end."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+import shellform as sf
+from shellform.cli import main
+from shellform.errors import SceneError
+from shellform.io import write_series, write_state
+from shellform.scene import build_structure, build_system, load_scene, parse_scene
+
+VON_MISES = """
+title = "von Mises truss"
+[nodes]
+coordinates = [[-1.0, 0.0, 0.0], [0.0, 0.0, 0.2], [1.0, 0.0, 0.0]]
+[[members]]
+kind = "bar"
+connectivity = [[0, 1], [1, 2]]
+EA = 1.0e4
+[[supports]]
+nodes = [0, 2]
+[[supports]]
+nodes = [1]
+dofs = "y"
+[[loads]]
+nodes = [1]
+force = [0.0, 0.0, -1.0]
+[analysis]
+load_factor = 20.0
+"""
+
+
+def solved_net():
+    s = sf.Structure([[0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0]])
+    s.add_ropes([[0, 1], [1, 2], [1, 3]], EA=1e3, slack=0.05, mass_per_length=1.0, name="net")
+    s.add_bars([[0, 3], [3, 2]], EA=1e4, name="frame")
+    s.fix([0, 2, 3])
+    s.set_gravity()
+    system = sf.build_system(s)
+    res = sf.solve_static(system)
+    assert res.success, res.message
+    return system, res
+
+
+def test_state_round_trip_through_vtu(tmp_path):
+    system, res = solved_net()
+    path = write_state(tmp_path / "state.vtu", system, res.q)
+    mesh = meshio.read(path)
+    n = system.structure.n_nodes
+    assert np.allclose(mesh.points, res.q.reshape(n, 3))
+    assert np.allclose(mesh.point_data["displacement"], res.q.reshape(n, 3) - system.structure.nodes)
+    assert np.allclose(mesh.point_data["reaction"], res.reactions.reshape(n, 3))
+    forces = system.member_results(res.q)
+    expected = np.concatenate([forces["net"]["axial_force"], forces["frame"]["axial_force"]])
+    assert np.allclose(mesh.cell_data["axial_force"][0], expected)
+    assert list(mesh.cell_data["slack"][0]) == list(forces["net"]["slack"]) + [0, 0]
+    assert list(mesh.cell_data["group"][0]) == [0, 0, 0, 1, 1]
+    assert not list(tmp_path.glob(".state-*")), "temporary file left behind"
+
+
+def test_series_round_trip_through_xdmf(tmp_path):
+    system, res = solved_net()
+    states = [(t, system.q_ref + t * (res.q - system.q_ref), 1.0) for t in (0.0, 0.5, 1.0)]
+    path = write_series(tmp_path / "path.xdmf", system, states)
+    with meshio.xdmf.TimeSeriesReader(path) as reader:
+        points, cells = reader.read_points_cells()
+        assert reader.num_steps == 3
+        assert np.allclose(points, system.structure.nodes)
+        for k, (t, q, _) in enumerate(states):
+            time, point_data, cell_data = reader.read_data(k)
+            assert time == pytest.approx(t)
+            assert np.allclose(point_data["displacement"], (q - system.q_ref).reshape(-1, 3))
+            assert np.all(np.isfinite(cell_data["axial_force"][0]))
+
+
+def test_scene_builds_only_the_listed_effects():
+    scene = parse_scene(__import__("tomllib").loads(VON_MISES))
+    structure = build_structure(scene)
+    system = build_system(scene, structure)
+    assert [e.name for e in system.effects] == ["axial", "loads"]
+    scene["effects"] = {"include": ["axial"]}
+    assert [e.name for e in build_system(scene, structure).effects] == ["axial"]
+
+
+@pytest.mark.parametrize(
+    "edit, key, words",
+    [
+        (lambda t: t.replace("EA = 1.0e4", "EA = -5.0"), "members[0].EA", "> 0.0"),
+        (lambda t: t.replace("EA = 1.0e4", 'EA = "stiff"'), "members[0].EA", "a number"),
+        (lambda t: t.replace("kind = \"bar\"", "kind = \"beam\""), "members[0].kind", "'bar', 'rope'"),
+        (lambda t: t.replace("connectivity = [[0, 1], [1, 2]]", "connectivity = [[0, 1], [1, 5]]"),
+         "members[0]", "node index 5 is out of range"),
+        (lambda t: t.replace("[[0, 1], [1, 2]]", "[[0, 1], [1, 2, 3]]"), "members[0].connectivity", "node pairs"),
+        (lambda t: t.replace("dofs = \"y\"", "dofs = \"w\""), "supports[1]", "x, y, z"),
+        (lambda t: t.replace("load_factor", "load_fcator"), "analysis.load_fcator", "unknown key"),
+        (lambda t: t.replace("[0.0, 0.0, 0.2]", "[0.0, nan, 0.2]"), "nodes.coordinates[1, 1]", "not finite"),
+        (lambda t: t.replace("[[supports]]\nnodes = [0, 2]\n", ""), "supports", "translate freely"),
+        (lambda t: t.replace("[nodes]", "[nodez]"), "nodez", "unknown key"),
+    ],
+)
+def test_malformed_scene_names_the_key(tmp_path, edit, key, words):
+    path = tmp_path / "bad.toml"
+    path.write_text(edit(VON_MISES))
+    with pytest.raises(SceneError) as info:
+        scene = load_scene(path)
+        build_system(scene, build_structure(scene))
+    assert info.value.key.replace(" ", "") == key.replace(" ", "")
+    assert words in str(info.value)
+
+
+def test_not_toml_is_reported(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[nodes\ncoordinates = 3")
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(path)
+
+
+def test_run_writes_summary_and_meshes(tmp_path):
+    scene = tmp_path / "truss.toml"
+    scene.write_text(VON_MISES)
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("converged", "iterations", "residual_norm", "n_nodes", "n_members", "n_dof", "wall_time_s"):
+        assert key in summary
+    assert summary["converged"] is True
+    assert (summary["n_nodes"], summary["n_members"], summary["n_dof"]) == (3, 2, 9)
+    assert summary["reaction_sum"][2] == pytest.approx(20.0, rel=1e-8)
+    mesh = meshio.read(out / "state.vtu")
+    assert len(mesh.points) == 3
+    assert (out / "state.xdmf").exists()
+
+
+def test_command_line_reports_scene_errors_without_traceback(tmp_path):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(VON_MISES.replace("EA = 1.0e4", "EA = 0.0"))
+    proc = subprocess.run(
+        [sys.executable, "-m", "shellform", "run", str(scene), "--out", str(tmp_path / "o")],
+        capture_output=True, text=True,
+    )
+    assert proc.returncode == 2
+    assert "scene key 'members[0].EA'" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_default_scene_runs(tmp_path):
+    assert main(["run", "--out", str(tmp_path), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["converged"]
+    assert summary["max_displacement"] > 0.1
