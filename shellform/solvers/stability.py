@@ -1,0 +1,375 @@
+"""Stability of an equilibrium from the inertia of its tangent.
+
+An equilibrium is stable when the free-DOF tangent ``K`` is positive definite.
+The number of negative eigenvalues of ``K`` (its *inertia*) tells how many
+independent directions lower the energy; it changes by one at a simple limit
+or bifurcation point. Counting it is more informative than the sign of
+``det K``, which cannot see two eigenvalues crossing zero together.
+
+By Sylvester's law of inertia, ``K = P L D L^T P^T`` has as many negative
+eigenvalues as ``D`` has negative entries. :class:`LDLFactor` factorises with
+``qdldl`` (AMD ordering, no pivoting). Without pivoting a factorisation of an
+indefinite matrix can meet a zero or tiny pivot or grow large entries, so
+:func:`inertia` trusts the count only when every pivot is clearly away from
+zero and a test solve has a small backward error. Otherwise it brackets zero
+with two shifted factorisations ``K -/+ sigma I`` and resolves the
+eigenvalues inside ``[-sigma, sigma)`` with ``eigsh`` in shift-invert mode.
+
+:func:`critical_modes` returns the eigenpairs closest to zero (the buckling
+mode at a critical point).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .linear import SingularMatrixError
+
+#: below this size eigenvalue problems are solved densely
+DENSE_LIMIT = 400
+
+
+class InertiaError(RuntimeError):
+    """The inertia of a matrix could not be determined reliably."""
+
+
+# ---------------------------------------------------------------------------
+# LDL^T factorisation
+# ---------------------------------------------------------------------------
+def _upper_csc(A) -> sp.csc_matrix:
+    """Upper triangle of a symmetric matrix in CSC form, diagonal always stored.
+
+    For a symmetric matrix the lower triangle of its CSR arrays is the upper
+    triangle in CSC form, so no transpose is needed. Explicit zeros are kept so
+    that the pattern (and qdldl's symbolic factorisation) does not change
+    when an entry happens to vanish.
+    """
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.copy()
+        A.sort_indices()
+    n = A.shape[0]
+    row = np.repeat(np.arange(n), np.diff(A.indptr))
+    has_diag = np.zeros(n, dtype=bool)
+    has_diag[row[A.indices == row]] = True
+    if not has_diag.all():
+        missing = np.flatnonzero(~has_diag)
+        coo = A.tocoo()
+        r = np.concatenate([coo.row, missing])
+        c = np.concatenate([coo.col, missing])
+        v = np.concatenate([coo.data, np.zeros(missing.size)])
+        A = sp.csr_matrix((v, (r, c)), shape=A.shape)
+        A.sum_duplicates()
+        A.sort_indices()
+        row = np.repeat(np.arange(n), np.diff(A.indptr))
+    keep = A.indices <= row
+    counts = np.bincount(row[keep], minlength=n)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    return sp.csc_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
+
+
+class LDLFactor:
+    """Symmetric ``L D L^T`` factorisation (qdldl) with solve and inertia.
+
+    Parameters
+    ----------
+    A : sparse matrix
+        Symmetric matrix; only its lower triangle in CSR order is read.
+    previous : LDLFactor, optional
+        A factor of a matrix with the same sparsity pattern; its ordering and
+        symbolic factorisation are reused (qdldl ``update``).
+
+    Raises
+    ------
+    SingularMatrixError
+        When a pivot is zero or not finite.
+    """
+
+    method = "ldl"
+
+    def __init__(self, A, previous: LDLFactor | None = None):
+        import qdldl
+
+        U = _upper_csc(A)
+        self.n = U.shape[0]
+        self._A = A
+        self.scale = float(np.max(np.abs(U.diagonal()))) if self.n else 0.0
+        if self.scale == 0.0:
+            self.scale = float(np.max(np.abs(U.data))) if U.nnz else 1.0
+        solver = None
+        if (
+            previous is not None
+            and previous._solver is not None
+            and previous._U.shape == U.shape
+            and np.array_equal(previous._U.indptr, U.indptr)
+            and np.array_equal(previous._U.indices, U.indices)
+        ):
+            solver = previous._solver
+            previous._solver = None  # the qdldl object now holds this matrix
+            try:
+                solver.update(U, upper=True)
+            except (RuntimeError, ValueError) as exc:
+                raise SingularMatrixError(f"LDL factorisation failed: {exc}") from None
+        else:
+            try:
+                solver = qdldl.Solver(U, upper=True)
+            except (RuntimeError, ValueError) as exc:
+                raise SingularMatrixError(f"LDL factorisation failed: {exc}") from None
+        self._U = U
+        d = np.asarray(solver.factors()[1], dtype=float)
+        # qdldl's update does not report a zero pivot itself
+        if not np.all(np.isfinite(d)) or np.any(d == 0.0):
+            raise SingularMatrixError("LDL factorisation met a zero pivot (matrix singular in this ordering)")
+        self._solver = solver
+        self.d = d
+
+    @property
+    def n_negative_pivots(self) -> int:
+        return int(np.count_nonzero(self.d < 0.0))
+
+    @property
+    def min_pivot_ratio(self) -> float:
+        """Smallest ``|d_i|`` relative to the largest diagonal entry of the matrix."""
+        return float(np.min(np.abs(self.d)) / self.scale) if self.n else np.inf
+
+    def solve(self, b: np.ndarray, refine: bool = True) -> np.ndarray:
+        """Solve ``A x = b``, with one step of iterative refinement when needed."""
+        b = np.asarray(b, dtype=float)
+        x = self._solver.solve(b)
+        if refine:
+            r = b - self._A @ x
+            if np.linalg.norm(r) > 1e-12 * max(np.linalg.norm(b), 1e-300):
+                x = x + self._solver.solve(r)
+        if not np.all(np.isfinite(x)):
+            raise SingularMatrixError("LDL solve produced non-finite values (matrix numerically singular)")
+        return x
+
+    def backward_error(self) -> float:
+        """Normwise backward error of a test solve, ``|A x - b| / (|A| |x| + |b|)`` (infinity norms)."""
+        rng = np.random.default_rng(12345)
+        x_true = rng.standard_normal(self.n)
+        b = self._A @ x_true
+        x = self._solver.solve(b)
+        if not np.all(np.isfinite(x)):
+            return np.inf
+        r = self._A @ x - b
+        norm_A = float(abs(self._A).sum(axis=1).max())
+        denom = norm_A * float(np.max(np.abs(x))) + float(np.max(np.abs(b)))
+        return float(np.max(np.abs(r)) / denom) if denom > 0 else 0.0
+
+    def trustworthy(self, pivot_tol: float = 1e-10, backward_tol: float = 1e-11) -> bool:
+        """Whether the pivot signs give the inertia: no tiny pivot, small backward error."""
+        return self.min_pivot_ratio > pivot_tol and self.backward_error() < backward_tol
+
+
+# ---------------------------------------------------------------------------
+# inertia
+# ---------------------------------------------------------------------------
+@dataclass
+class Inertia:
+    """Eigenvalue sign count of a symmetric matrix.
+
+    Attributes
+    ----------
+    n_negative, n_zero, n_positive : int
+        Eigenvalues below ``-zero_tol``, within ``[-zero_tol, zero_tol]``, above.
+    n_below_zero : int
+        Eigenvalues strictly below zero, tiny ones included (what a bisection
+        on a sign change needs).
+    method : str
+        ``"ldl"`` (pivot signs), ``"ldl-shifted"`` (two shifted factorisations
+        plus eigsh in the band around zero) or ``"dense"``.
+    min_pivot_ratio : float
+        Smallest pivot of the unshifted factorisation relative to the largest
+        diagonal entry (``nan`` when it failed).
+    zero_tol : float
+        Magnitude below which an eigenvalue counts as zero.
+    """
+
+    n_negative: int
+    n_zero: int
+    n_positive: int
+    n_below_zero: int
+    method: str
+    min_pivot_ratio: float = float("nan")
+    zero_tol: float = 0.0
+
+
+def _diag_scale(A) -> float:
+    d = np.abs(A.diagonal())
+    s = float(d.max()) if d.size else 0.0
+    if s == 0.0:
+        s = float(abs(A).max()) if A.nnz else 1.0
+    return s
+
+
+def _dense_inertia(A, zero_tol: float, method: str = "dense", ratio=float("nan")) -> Inertia:
+    w = sla.eigvalsh(A.toarray() if sp.issparse(A) else np.asarray(A))
+    return Inertia(
+        n_negative=int(np.sum(w < -zero_tol)),
+        n_zero=int(np.sum(np.abs(w) <= zero_tol)),
+        n_positive=int(np.sum(w > zero_tol)),
+        n_below_zero=int(np.sum(w < 0.0)),
+        method=method,
+        min_pivot_ratio=ratio,
+        zero_tol=zero_tol,
+    )
+
+
+def _eigs_near_zero(A, k: int, scale: float) -> np.ndarray:
+    """The ``k`` eigenvalues of ``A`` closest to zero."""
+    n = A.shape[0]
+    if n <= DENSE_LIMIT or k >= n - 1:
+        w = sla.eigvalsh(A.toarray())
+        return w[np.argsort(np.abs(w))[:k]]
+    last = None
+    # shift-invert about a point slightly off zero: A itself may be singular
+    for offset in (-0.37e-9, 0.53e-9, -0.71e-7, 0.29e-6):
+        try:
+            w = spla.eigsh(sp.csc_matrix(A), k=k, sigma=offset * scale, which="LM", return_eigenvectors=False)
+            return w[np.argsort(np.abs(w))]
+        except (RuntimeError, spla.ArpackNoConvergence, ValueError) as exc:
+            last = exc
+    raise InertiaError(f"eigsh in shift-invert mode failed near zero: {last}")
+
+
+def inertia(
+    A,
+    factor: LDLFactor | None = None,
+    pivot_tol: float = 1e-10,
+    band: float = 1e-8,
+    zero_tol: float | None = None,
+    dense_limit: int = 2000,
+) -> Inertia:
+    """Count the negative, zero and positive eigenvalues of a symmetric matrix.
+
+    Parameters
+    ----------
+    A : sparse matrix
+        Symmetric matrix (the free-DOF tangent).
+    factor : LDLFactor, optional
+        An existing factorisation of ``A`` (saves refactorising).
+    pivot_tol : float
+        Pivots smaller than ``pivot_tol`` times the largest diagonal entry make
+        the plain count untrustworthy.
+    band : float
+        Half-width of the band around zero, relative to the largest diagonal
+        entry, resolved by shifted factorisations and eigsh.
+    zero_tol : float, optional
+        Eigenvalues with magnitude up to this count as zero; default
+        ``1e-11`` times the largest diagonal entry.
+    dense_limit : int
+        Largest size for the last-resort dense eigenvalue count.
+
+    Returns
+    -------
+    Inertia
+
+    Raises
+    ------
+    InertiaError
+        When neither the factorisations nor the eigenvalue fallbacks succeed.
+    """
+    A = sp.csr_matrix(A)
+    n = A.shape[0]
+    scale = _diag_scale(A)
+    ztol = 1e-11 * scale if zero_tol is None else float(zero_tol)
+    if factor is None:
+        try:
+            factor = LDLFactor(A)
+        except SingularMatrixError:
+            factor = None
+    ratio = factor.min_pivot_ratio if factor is not None else float("nan")
+    if factor is not None and factor.trustworthy(pivot_tol):
+        m = factor.n_negative_pivots
+        return Inertia(m, 0, n - m, m, "ldl", ratio, ztol)
+
+    # bracket zero: K + s I counts eigenvalues below -s, K - s I those below +s
+    eye = sp.identity(n, format="csr")
+    for rel in (band, 10 * band, 100 * band):
+        sigma = rel * scale
+        try:
+            f_lo = LDLFactor(A + sigma * eye)
+            f_hi = LDLFactor(A - sigma * eye)
+        except SingularMatrixError:
+            continue
+        if not (f_lo.trustworthy(pivot_tol) and f_hi.trustworthy(pivot_tol)):
+            continue
+        below_lo = f_lo.n_negative_pivots  # eigenvalues < -sigma
+        below_hi = f_hi.n_negative_pivots  # eigenvalues < +sigma
+        m = below_hi - below_lo
+        if m < 0:
+            continue
+        if m == 0:
+            return Inertia(below_lo, 0, n - below_lo, below_lo, "ldl-shifted", ratio, ztol)
+        try:
+            w = _eigs_near_zero(A, min(m + 2, n), scale)
+        except InertiaError:
+            break
+        w = np.sort(w)
+        in_band = w[(w >= -sigma) & (w < sigma)]
+        if in_band.size != m:
+            # eigsh did not return the whole band; try a wider shift
+            continue
+        n_neg = below_lo + int(np.sum(in_band < -ztol))
+        n_zero = int(np.sum(np.abs(in_band) <= ztol))
+        return Inertia(
+            n_negative=n_neg,
+            n_zero=n_zero,
+            n_positive=n - n_neg - n_zero,
+            n_below_zero=below_lo + int(np.sum(in_band < 0.0)),
+            method="ldl-shifted",
+            min_pivot_ratio=ratio,
+            zero_tol=ztol,
+        )
+    if n <= dense_limit:
+        return _dense_inertia(A, ztol, "dense", ratio)
+    raise InertiaError(
+        f"inertia of a {n}x{n} matrix could not be determined: the LDL^T factorisation without pivoting "
+        "was unreliable even with shifts"
+    )
+
+
+# ---------------------------------------------------------------------------
+# critical modes
+# ---------------------------------------------------------------------------
+def critical_modes(A, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` eigenpairs of a symmetric matrix with eigenvalues closest to zero.
+
+    Dense for small matrices, otherwise a few Lanczos iterations of ``eigsh``
+    in shift-invert mode about a point just off zero (the matrix itself is
+    singular at a critical point).
+
+    Returns
+    -------
+    values : ndarray, shape (k,)
+        Eigenvalues, smallest magnitude first.
+    vectors : ndarray, shape (n, k)
+        Unit eigenvectors, each with its largest-magnitude entry positive.
+    """
+    A = sp.csr_matrix(A)
+    n = A.shape[0]
+    k = int(min(max(k, 1), n))
+    if n <= DENSE_LIMIT or k >= n - 1:
+        w, V = sla.eigh(A.toarray())
+    else:
+        scale = _diag_scale(A)
+        last = None
+        for offset in (-0.37e-9, 0.53e-9, -0.71e-7, 0.29e-6):
+            try:
+                w, V = spla.eigsh(sp.csc_matrix(A), k=k, sigma=offset * scale, which="LM")
+                break
+            except (RuntimeError, spla.ArpackNoConvergence, ValueError) as exc:
+                last = exc
+        else:
+            raise InertiaError(f"eigsh in shift-invert mode failed near zero: {last}")
+    order = np.argsort(np.abs(w))[:k]
+    w, V = w[order], V[:, order]
+    idx = np.argmax(np.abs(V), axis=0)
+    V = V * np.sign(V[idx, np.arange(V.shape[1])])
+    return w, V
