@@ -1,0 +1,79 @@
+"""Twisting of discrete elastic rods (Eq. 1c of the gridshell paper).
+
+At every interior node ``i``: ``E_t = GJ_i / (2 dl_i) (tau_i - tau_bar_i)^2`` with
+the integrated twist ``tau_i = theta^i - theta^{i-1} + m_i``, ``m_i`` the
+reference twist of the time-parallel reference frames, ``dl_i`` the rest
+Voronoi length and ``tau_bar_i`` the natural twist. The twist rate is
+``tau / dl`` and the torque ``GJ (tau - tau_bar) / dl``.
+
+``m_i`` depends on the positions; its exact gradient and Hessian at any trial
+state (not only at the stored one) come from the spherical-triangle form of
+the holonomy in :mod:`shellform.rods.kinematics`, so the Hessian of this
+effect is exact, including the coupling of twist to bending that drives twist
+buckling.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..rods.hinge import HingeEffect, reference_twist_change
+from .base import Effect
+
+
+class RodTwisting(HingeEffect, Effect):
+    """Twisting of all hinges of all rods at once.
+
+    Parameters
+    ----------
+    n_dof : int
+    frames : ReferenceFrames
+        Shared reference state of the rod edges.
+    stencil : ndarray (h, 11)
+        DOFs ``(x0, x1, x2, theta0, theta1)`` of every hinge.
+    voronoi : ndarray (h,)
+        Rest Voronoi lengths [m].
+    GJ : ndarray (h,)
+        Torsional stiffness [N m^2].
+    natural_twist : ndarray (h,)
+        Integrated natural twist ``tau_bar`` [rad].
+    """
+
+    name = "rod_twist"
+
+    def __init__(self, n_dof, frames, stencil, voronoi, GJ, natural_twist):
+        Effect.__init__(self, n_dof)
+        self._setup(frames, stencil)
+        self.voronoi = np.asarray(voronoi, dtype=float)
+        self.GJ = np.asarray(GJ, dtype=float)
+        self.k = self.GJ / (2.0 * self.voronoi)
+        self.tau_bar = np.asarray(natural_twist, dtype=float)
+
+    def twist(self, q: np.ndarray) -> np.ndarray:
+        """Integrated twist ``tau`` of every hinge at ``q``."""
+        theta = q[self.stencil[:, 9:]]
+        return theta[:, 1] - theta[:, 0] + self.frames.reference_twist(q)
+
+    def _local(self, q, order):
+        if order == 0:
+            return (self.k * (self.twist(q) - self.tau_bar) ** 2,)
+        t0, t1, _, _, theta = self._geometry(q)
+        h0, h1 = self.hinge_edges[:, 0], self.hinge_edges[:, 1]
+        beta, gb, Hb = reference_twist_change(t0, t1, self.frames.tangent[h0], self.frames.tangent[h1])
+        dtau = theta[:, 1] - theta[:, 0] + self.frames.twist + beta - self.tau_bar
+        n = len(t0)
+        gtau = np.zeros((n, 8))
+        gtau[:, :6] = gb
+        gtau[:, 6] = -1.0
+        gtau[:, 7] = 1.0
+        k2 = 2.0 * self.k
+        g = (k2 * dtau)[:, None] * gtau
+        H = None
+        if order == 2:
+            H = k2[:, None, None] * gtau[:, :, None] * gtau[:, None, :]
+            H[:, :6, :6] += (k2 * dtau)[:, None, None] * Hb
+        return self.k * dtau**2, g, H
+
+    def member_results(self, q):
+        tau = self.twist(q)
+        return {"twist_rate": tau / self.voronoi, "torque": self.GJ * (tau - self.tau_bar) / self.voronoi}

@@ -1,0 +1,348 @@
+"""Exact gradients and Hessians of the bending and twisting energies of rod hinges.
+
+A *hinge* is an interior node ``x_1`` of a rod with its two edges
+``e^0 = x_1 - x_0`` and ``e^1 = x_2 - x_1`` and their twist angles
+``theta^0, theta^1``: a stencil of 11 DOFs ``(x_0, x_1, x_2, theta^0, theta^1)``.
+
+Both energies depend on the positions only through the unit tangents
+``t^j = e^j / |e^j|`` (the rest Voronoi length is a constant). The derivatives
+are therefore written in three layers, each exact:
+
+1. with respect to ``y = (t^0, t^1, theta^0, theta^1)`` (8 variables), where
+   every quantity is a rational function of the tangents (curvature binormal,
+   parallel-transported directors, the spherical-triangle expressions of the
+   reference twist) or a sine/cosine of the angles. The tangents are treated
+   as free 3-vectors: any smooth extension off the unit sphere gives the same
+   derivatives once composed with the normalisation of step 2;
+2. through the normalisation ``t = e / |e|`` to ``z = (e^0, e^1, theta^0, theta^1)``;
+3. through the constant map from the stencil DOFs to the edge vectors.
+
+All functions are vectorised over hinges (leading axis ``n``).
+
+Conventions (Bergou et al. 2008): curvature binormal
+``kb = 2 t^0 x t^1 / (1 + t^0 . t^1)``; material curvature of edge ``j`` at the
+hinge ``omega^j = (kb . m2^j, -kb . m1^j)``; twist
+``tau = theta^1 - theta^0 + m`` with ``m`` the reference twist
+(:mod:`shellform.rods.kinematics`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .kinematics import dot, skew
+
+_I3 = np.eye(3)
+
+
+# -- layer 1: curvature binormal ------------------------------------------------------
+
+
+def curvature_binormal_jacobian(t0: np.ndarray, t1: np.ndarray):
+    """Curvature binormal and its Jacobian with respect to ``(t0, t1)``.
+
+    Returns
+    -------
+    kb : ndarray (n, 3)
+    chi : ndarray (n,)
+        ``1 + t0 . t1``.
+    J : ndarray (n, 3, 6)
+        ``d kb / d(t0, t1)``.
+    """
+    chi = 1.0 + dot(t0, t1)
+    kb = 2.0 * np.cross(t0, t1) / chi[:, None]
+    J = np.empty((len(t0), 3, 6))
+    J[:, :, :3] = (-2.0 * skew(t1) - kb[:, :, None] * t1[:, None, :]) / chi[:, None, None]
+    J[:, :, 3:] = (2.0 * skew(t0) - kb[:, :, None] * t0[:, None, :]) / chi[:, None, None]
+    return kb, chi, J
+
+
+def hessian_of_projected_binormal(t0, t1, kb, chi, J, p):
+    """Hessian over ``(t0, t1)`` of ``h = p . kb`` for a fixed vector ``p``; shape (n, 6, 6).
+
+    From ``h chi = 2 p . (t0 x t1)``:
+    ``H_h = (2 H_N - grad h grad chi^T - grad chi grad h^T - h H_chi) / chi``.
+    """
+    n = len(t0)
+    h = dot(p, kb)
+    gh = np.einsum("nk,nka->na", p, J)
+    gchi = np.concatenate([t1, t0], axis=1)
+    P = skew(p)
+    H = np.zeros((n, 6, 6))
+    H[:, :3, 3:] = -2.0 * P
+    H[:, 3:, :3] = 2.0 * P
+    H -= gh[:, :, None] * gchi[:, None, :] + gchi[:, :, None] * gh[:, None, :]
+    H[:, :3, 3:] -= h[:, None, None] * _I3
+    H[:, 3:, :3] -= h[:, None, None] * _I3
+    return H / chi[:, None, None]
+
+
+# -- layer 1: reference twist -------------------------------------------------------------
+
+
+def _atan2_derivatives(N, D, gN, gD, HN, HD):
+    """Value, gradient and Hessian of ``2 atan2(N, D)``."""
+    R = N * N + D * D
+    G = D[:, None] * gN - N[:, None] * gD
+    g = 2.0 * G / R[:, None]
+    H = (
+        gN[:, :, None] * gD[:, None, :]
+        - gD[:, :, None] * gN[:, None, :]
+        + D[:, None, None] * HN
+        - N[:, None, None] * HD
+    ) / R[:, None, None]
+    gR = 2.0 * (N[:, None] * gN + D[:, None] * gD)
+    H -= G[:, :, None] * gR[:, None, :] / (R * R)[:, None, None]
+    H = H + np.swapaxes(H, 1, 2)  # 2 * symmetric part
+    return 2.0 * np.arctan2(N, D), g, H
+
+
+def reference_twist_change(t0, t1, s0, s1):
+    """Change of the reference twist from the stored state, with derivatives over ``(t0, t1)``.
+
+    ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
+    :mod:`shellform.rods.kinematics`), so that ``m(q) = m_stored + beta``.
+
+    Returns
+    -------
+    beta : ndarray (n,)
+    grad : ndarray (n, 6)
+    hess : ndarray (n, 6, 6)
+    """
+    n = len(t0)
+    zero3 = np.zeros((n, 3))
+    # triangle (s0, t0, t1)
+    N1 = dot(s0, np.cross(t0, t1))
+    D1 = 1.0 + dot(s0, t0) + dot(t0, t1) + dot(t1, s0)
+    gN1 = np.concatenate([np.cross(t1, s0), np.cross(s0, t0)], axis=1)
+    gD1 = np.concatenate([s0 + t1, t0 + s0], axis=1)
+    HN1 = np.zeros((n, 6, 6))
+    S0 = skew(s0)
+    HN1[:, :3, 3:] = -S0
+    HN1[:, 3:, :3] = S0
+    HD1 = np.zeros((n, 6, 6))
+    HD1[:, :3, 3:] = _I3
+    HD1[:, 3:, :3] = _I3
+    w1, g1, H1 = _atan2_derivatives(N1, D1, gN1, gD1, HN1, HD1)
+    # triangle (s0, t1, s1): linear numerator and denominator in t1
+    N2 = dot(s0, np.cross(t1, s1))
+    D2 = 1.0 + dot(s0, t1) + dot(t1, s1) + dot(s1, s0)
+    gN2 = np.concatenate([zero3, np.cross(s1, s0)], axis=1)
+    gD2 = np.concatenate([zero3, s0 + s1], axis=1)
+    Z = np.zeros((n, 6, 6))
+    w2, g2, H2 = _atan2_derivatives(N2, D2, gN2, gD2, Z, Z)
+    return -(w1 + w2), -(g1 + g2), -(H1 + H2)
+
+
+# -- layer 1: material-frame term of the bending energy -----------------------------------
+
+
+def _transported_components(abc):
+    """Parallel-transported directors in the stored frame, with first and second derivatives.
+
+    With ``(a, b, c)`` the components of a tangent in the stored frame
+    ``(u, v, s)`` of its edge, the transported directors have components
+    ``U = (c + b^2/d, -ab/d, -a)`` and ``V = (-ab/d, c + a^2/d, -b)``,
+    ``d = 1 + c``.
+
+    Returns
+    -------
+    U, V : (n, 3)
+    DU, DV : (n, 3, 3)   d(component)/d(a, b, c)
+    HU, HV : (n, 3, 3, 3) second derivatives, indexed [component, var, var]
+    """
+    a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
+    n = len(a)
+    d = 1.0 + c
+    d2, d3 = d * d, d * d * d
+    U = np.stack([c + b * b / d, -a * b / d, -a], axis=1)
+    V = np.stack([-a * b / d, c + a * a / d, -b], axis=1)
+    DU = np.zeros((n, 3, 3))
+    DV = np.zeros((n, 3, 3))
+    DU[:, 0, 1] = 2 * b / d
+    DU[:, 0, 2] = 1 - b * b / d2
+    DU[:, 1, 0] = -b / d
+    DU[:, 1, 1] = -a / d
+    DU[:, 1, 2] = a * b / d2
+    DU[:, 2, 0] = -1.0
+    DV[:, 0] = DU[:, 1]
+    DV[:, 1, 0] = 2 * a / d
+    DV[:, 1, 2] = 1 - a * a / d2
+    DV[:, 2, 1] = -1.0
+    HU = np.zeros((n, 3, 3, 3))
+    HV = np.zeros((n, 3, 3, 3))
+    HU[:, 0, 1, 1] = 2 / d
+    HU[:, 0, 1, 2] = HU[:, 0, 2, 1] = -2 * b / d2
+    HU[:, 0, 2, 2] = 2 * b * b / d3
+    HU[:, 1, 0, 1] = HU[:, 1, 1, 0] = -1 / d
+    HU[:, 1, 0, 2] = HU[:, 1, 2, 0] = b / d2
+    HU[:, 1, 1, 2] = HU[:, 1, 2, 1] = a / d2
+    HU[:, 1, 2, 2] = -2 * a * b / d3
+    HV[:, 0] = HU[:, 1]
+    HV[:, 1, 0, 0] = 2 / d
+    HV[:, 1, 0, 2] = HV[:, 1, 2, 0] = -2 * a / d2
+    HV[:, 1, 2, 2] = 2 * a * a / d3
+    return U, V, DU, DV, HU, HV
+
+
+def material_curvature_term(t0, t1, kb, chi, J, edge, t_edge, frame, omega_bar, theta):
+    """Value and derivatives over ``y = (t0, t1, theta0, theta1)`` of ``omega_bar . omega^j``.
+
+    ``omega_bar . omega^j = kb . W`` with ``W = omega_bar_1 m2 - omega_bar_2 m1``,
+    a vector fixed in the material frame of edge ``j``.
+
+    Parameters
+    ----------
+    edge : {0, 1}
+        Which edge of the hinge.
+    t_edge : (n, 3)
+        Tangent of that edge at the trial state.
+    frame : (n, 3, 3)
+        Stored frame of that edge, columns ``(u, v, s)``.
+    omega_bar : (n, 2)
+        Natural material curvature of the hinge in that edge's frame.
+    theta : (n,)
+        Twist angle of that edge.
+
+    Returns
+    -------
+    f : (n,), g : (n, 8), H : (n, 8, 8)
+    """
+    n = len(t0)
+    ct, st = np.cos(theta), np.sin(theta)
+    w1, w2 = omega_bar[:, 0], omega_bar[:, 1]
+    A = -w1 * st - w2 * ct  # coefficient of u in W
+    B = w1 * ct - w2 * st  # coefficient of v in W (dA/dtheta = -B, dB/dtheta = A)
+    abc = np.einsum("nia,ni->na", frame, t_edge)
+    U, V, DU, DV, HU, HV = _transported_components(abc)
+    w = A[:, None] * U + B[:, None] * V
+    w_th = -B[:, None] * U + A[:, None] * V
+    Dw = A[:, None, None] * DU + B[:, None, None] * DV
+    Dw_th = -B[:, None, None] * DU + A[:, None, None] * DV
+    p = np.einsum("nia,ni->na", frame, kb)  # kb in the stored frame of the edge
+    W = np.einsum("nia,na->ni", frame, w)
+    W_th = np.einsum("nia,na->ni", frame, w_th)
+
+    f = dot(p, w)
+    te = slice(3 * edge, 3 * edge + 3)
+    th = 6 + edge
+    g = np.zeros((n, 8))
+    g[:, :6] = np.einsum("nk,nka->na", W, J)
+    g[:, te] += np.einsum("nab,nb->na", frame, np.einsum("nka,nk->na", Dw, p))
+    g[:, th] = dot(p, w_th)
+
+    H = np.zeros((n, 8, 8))
+    H[:, :6, :6] = hessian_of_projected_binormal(t0, t1, kb, chi, J, W)
+    # d/dt_edge of W, in global coordinates: frame Dw frame^T
+    dW = np.einsum("nia,nab,njb->nij", frame, Dw, frame)
+    cross = np.einsum("nki,nkj->nij", J, dW)  # (n, 6, 3)
+    H[:, :6, te] += cross
+    H[:, te, :6] += np.swapaxes(cross, 1, 2)
+    curv = np.einsum("nk,nkab->nab", p, A[:, None, None, None] * HU + B[:, None, None, None] * HV)
+    H[:, te, te] += np.einsum("nia,nab,njb->nij", frame, curv, frame)
+    mixed = np.einsum("nki,nk->ni", J, W_th)
+    mixed[:, te] += np.einsum("nab,nb->na", frame, np.einsum("nka,nk->na", Dw_th, p))
+    H[:, :6, th] = mixed
+    H[:, th, :6] = mixed
+    H[:, th, th] = -f
+    return f, g, H
+
+
+# -- layers 2 and 3: from tangents to stencil DOFs ------------------------------------
+
+
+def _stencil_map() -> np.ndarray:
+    """Constant map from stencil DOFs (x0, x1, x2, theta0, theta1) to (e0, e1, theta0, theta1)."""
+    B = np.zeros((8, 11))
+    B[0:3, 0:3] = -_I3
+    B[0:3, 3:6] = _I3
+    B[3:6, 3:6] = -_I3
+    B[3:6, 6:9] = _I3
+    B[6, 9] = 1.0
+    B[7, 10] = 1.0
+    return B
+
+
+STENCIL_MAP = _stencil_map()
+
+
+def to_stencil(t0, t1, l0, l1, g, H=None):
+    """Transform gradient (n, 8) and Hessian (n, 8, 8) over ``(t0, t1, theta0, theta1)``
+    to the 11 stencil DOFs ``(x0, x1, x2, theta0, theta1)``.
+
+    With ``t = e / l`` and ``P = I - t t^T``: ``dF/de = P g_t / l`` and
+    ``d2F/de2 = (P/l) H_tt (P/l) - (t g^T + g t^T + (g.t)(I - 3 t t^T)) / l^2``.
+    """
+    n = len(t0)
+    Pt = np.empty((n, 8, 8))
+    Pt[:] = 0.0
+    for k, (t, l) in enumerate(((t0, l0), (t1, l1))):
+        sl = slice(3 * k, 3 * k + 3)
+        Pt[:, sl, sl] = (_I3 - t[:, :, None] * t[:, None, :]) / l[:, None, None]
+    Pt[:, 6, 6] = 1.0
+    Pt[:, 7, 7] = 1.0
+    gz = np.einsum("nab,nb->na", Pt, g)
+    g11 = gz @ STENCIL_MAP
+    if H is None:
+        return g11, None
+    Hz = Pt @ H @ Pt
+    for k, (t, l) in enumerate(((t0, l0), (t1, l1))):
+        sl = slice(3 * k, 3 * k + 3)
+        gt = g[:, sl]
+        gdt = dot(gt, t)
+        S = t[:, :, None] * gt[:, None, :]
+        S = S + np.swapaxes(S, 1, 2)
+        S += gdt[:, None, None] * (_I3 - 3.0 * t[:, :, None] * t[:, None, :])
+        Hz[:, sl, sl] -= S / (l * l)[:, None, None]
+    H11 = STENCIL_MAP.T @ Hz @ STENCIL_MAP
+    return g11, H11
+
+
+# -- common machinery of the hinge effects ------------------------------------------------
+
+
+class HingeEffect:
+    """Mixin for effects defined on rod hinges (11-DOF stencils) with shared reference frames.
+
+    Subclasses implement ``_local(q, order)`` returning the energy per hinge and,
+    for ``order >= 1``, its gradient (h, 8) and, for ``order == 2``, Hessian
+    (h, 8, 8) over ``(t0, t1, theta0, theta1)``.
+    """
+
+    def _setup(self, frames, stencil):
+        from ..effects.base import element_pattern
+
+        self.frames = frames
+        self.stencil = np.asarray(stencil, dtype=np.int64)
+        self.hinge_edges = frames.hinges
+        self._pattern = element_pattern(self.stencil)
+
+    def _geometry(self, q):
+        t, l = self.frames.tangents(q)
+        h0, h1 = self.hinge_edges[:, 0], self.hinge_edges[:, 1]
+        theta = q[self.stencil[:, 9:]]
+        return t[h0], t[h1], l[h0], l[h1], theta
+
+    def energy(self, q):
+        return float(np.sum(self._local(q, 0)[0]))
+
+    def gradient(self, q):
+        from ..effects.base import scatter
+
+        t0, t1, l0, l1, _ = self._geometry(q)
+        _, g = self._local(q, 1)[:2]
+        g11, _ = to_stencil(t0, t1, l0, l1, g)
+        return scatter(self.n_dof, self.stencil, g11)
+
+    def hessian_pattern(self):
+        return self._pattern
+
+    def hessian_values(self, q):
+        t0, t1, l0, l1, _ = self._geometry(q)
+        _, g, H = self._local(q, 2)
+        _, H11 = to_stencil(t0, t1, l0, l1, g, H)
+        return H11.ravel()
+
+    def accept(self, q: np.ndarray) -> None:
+        """Make ``q`` the stored reference state (time-parallel transport of the frames)."""
+        self.frames.update(q)
