@@ -170,6 +170,19 @@ class System:
         out[self.constrained] = r[self.constrained]
         return out
 
+    def accept(self, q: np.ndarray) -> None:
+        """Tell the effects that keep history that ``q`` is an accepted state.
+
+        Discrete elastic rods carry their reference frames from the last
+        accepted configuration by parallel transport; other effects have no
+        history and are not called. Solvers call this after each converged
+        load, continuation or time step. The energy at ``q`` is unchanged.
+        """
+        for e in self.effects:
+            hook = getattr(e, "accept", None)
+            if hook is not None:
+                hook(q)
+
     def member_results(self, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
         """Per-member output of every effect that reports any, keyed by effect label."""
         out = {}
