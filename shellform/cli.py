@@ -36,7 +36,7 @@ def _cmd_schema(args) -> int:
     from .schema import describe
     from .scene import SCENE
 
-    print("\n".join(describe(SCENE)))
+    print("\n".join(describe(SCENE, level=3)))
     return 0
 
 

@@ -154,3 +154,10 @@ def test_default_scene_runs(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"]
     assert summary["max_displacement"] > 0.1
+
+
+def test_scene_reference_in_docs_matches_the_schema(capsys):
+    assert main(["schema"]) == 0
+    generated = capsys.readouterr().out.strip()
+    docs = (Path(__file__).parents[1] / "docs" / "scenes.md").read_text()
+    assert generated in docs, "docs/scenes.md is out of date: paste the output of `shellform schema`"

@@ -1,0 +1,58 @@
+"""The linear-solver interface: answers, inertia, fallbacks and clear failures."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from shellform.solvers.linear import SingularMatrixError, factorize
+
+
+def laplacian_3d(n):
+    """SPD test matrix: 1D Laplacian in each of x, y, z, interleaved by node."""
+    T = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1])
+    return sp.kron(T, sp.eye(3)).tocsr()
+
+
+@pytest.mark.parametrize("method", ["direct", "ldl", "lu", "amg", "auto"])
+def test_solvers_agree_on_an_spd_system(method):
+    A = laplacian_3d(50)
+    x_true = np.random.default_rng(0).normal(size=A.shape[0])
+    x = factorize(A, method).solve(A @ x_true)
+    assert np.allclose(x, x_true, rtol=1e-7, atol=1e-7)
+
+
+def test_ldl_inertia_matches_eigenvalues_of_an_indefinite_matrix():
+    rng = np.random.default_rng(1)
+    Q, _ = np.linalg.qr(rng.normal(size=(30, 30)))
+    eig = np.concatenate([-rng.uniform(1, 2, 4), rng.uniform(1, 2, 26)])
+    A = sp.csr_matrix(Q @ np.diag(eig) @ Q.T)
+    F = factorize(A, "ldl")
+    assert F.inertia == (4, 0, 26)
+    b = rng.normal(size=30)
+    assert np.allclose(A @ F.solve(b), b)
+
+
+def test_direct_falls_back_to_lu_on_a_zero_pivot():
+    # symmetric and non-singular, but a zero leading pivot in any ordering of this 2x2
+    A = sp.csr_matrix(np.array([[0.0, 1.0], [1.0, 0.0]]))
+    with pytest.raises(SingularMatrixError):
+        factorize(A, "ldl")
+    assert np.allclose(factorize(A, "direct").solve([2.0, 3.0]), [3.0, 2.0])
+
+
+@pytest.mark.parametrize("method", ["direct", "lu", "ldl"])
+def test_singular_matrix_raises(method):
+    A = sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0]]))
+    with pytest.raises(SingularMatrixError):
+        factorize(A, method).solve([1.0, 0.0])
+
+
+def test_amg_refuses_an_indefinite_matrix():
+    A = laplacian_3d(40) - 1.5 * sp.eye(120)
+    with pytest.raises(SingularMatrixError, match="positive definite"):
+        factorize(A, "amg").solve(np.ones(120))
+
+
+def test_unknown_method():
+    with pytest.raises(ValueError, match="unknown linear solver"):
+        factorize(sp.eye(3), "magic")
