@@ -18,8 +18,9 @@ constraint
 
     |du|^2 + c^2 dp^2 = ds^2          (spherical; ``c = 0``: cylindrical),
 
-where ``c = psi * |du/dp|`` at the start makes both parts of the first step
-equal for ``psi = 1``. The constraint is solved for the parameter correction
+where ``c = psi * |dG/dp| / k`` (``k`` the mean diagonal of the starting
+tangent) is the displacement per unit parameter of a typical stiffness, so
+both parts of the metric have the same weight for ``psi = 1``. The constraint is solved for the parameter correction
 as a quadratic (Crisfield), picking the root closest to the current increment;
 where the tangent cannot be factorised (exactly at a limit point) the bordered
 system with the linearised constraint is solved instead.
@@ -190,6 +191,10 @@ class ContinuationResult:
         (factorisations and solves), ``stability`` (inertia checks beyond the
         factorisation, critical modes), ``event_location`` (bisection, which
         includes its own assembly and linear algebra), ``total``.
+    monitors : tuple of str
+        Names of the extra table columns.
+    parameter_scale : float
+        ``c`` of the arc-length metric ``|du|^2 + c^2 dp^2`` (0 for cylindrical).
     """
 
     success: bool
@@ -205,6 +210,7 @@ class ContinuationResult:
     events: list[PathEvent]
     timings: dict[str, float]
     monitors: tuple[str, ...] = ()
+    parameter_scale: float = 0.0
 
     def __getitem__(self, column: str) -> np.ndarray:
         return self.table[column]
@@ -510,8 +516,11 @@ class _Tracer:
             nR = float(np.linalg.norm(R))
             if not np.isfinite(nR):
                 raise _StepFailure(f"non-finite residual at corrector iteration {it}")
-            scale = max(self.pb.external_norm(p), float(np.linalg.norm(r[self.system.constrained])), self.kbar * ds)
-            tol = o["rtol"] * scale + o["atol"]
+            scale = max(self.pb.external_norm(p), float(np.linalg.norm(r[self.system.constrained])))
+            if scale == 0.0:
+                # nothing loaded yet (displacement control near mu = 0): relative to the predictor's imbalance
+                scale = nR if norm0 is None else norm0
+            tol = max(o["rtol"] * scale + o["atol"], self.round_floor)
             if nR <= tol:
                 return u, p, q, r, it
             if norm0 is None:
@@ -530,7 +539,11 @@ class _Tracer:
                     b = self.pb.solve(F, -g)
                 except SingularMatrixError:
                     a = b = None
-            if a is not None and self.c2 >= 0.0:
+            if a is not None and float(np.linalg.norm(b)) * self.kbar > 1e6 * max(float(np.linalg.norm(g)), 1e-300):
+                # nearly singular tangent (at a critical point): the two solves are huge and
+                # their combination cancels, so use the bordered system instead
+                a = b = None
+            if a is not None:
                 w = du + a
                 A = float(b @ b) + self.c2
                 B = 2.0 * (float(w @ b) + self.c2 * dp)
@@ -590,13 +603,20 @@ class _Tracer:
         o = self.o
         lam, mu = self.pb.lam_mu(p0)
         st = solve_static(self.system, q0, lam=lam, mu=mu, rtol=o["rtol"], max_iter=50)
-        if not st.success:
-            raise ModelError(f"no equilibrium at the starting parameter {p0}: {st.message}")
         q = st.q
         u = q[self.free].copy()
         K, g = self.pb.jacobian(u, p0, q)
         diag = np.abs(K.diagonal())
-        self.kbar = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
+        # residuals cannot be computed more accurately than the rounding of the
+        # member forces: stiffness times the rounding of the coordinates
+        self.round_floor = 16.0 * np.finfo(float).eps * float(diag.max(initial=0.0)) * float(np.max(np.abs(q)))
+        if not st.success and not st.residual_norm <= self.round_floor:
+            raise ModelError(f"no equilibrium at the starting parameter {p0}: {st.message}")
+        # stiffness scale for the arc-length metric: the larger of the reference and
+        # the starting state, so that a start next to a critical point does not distort it
+        d_ref = np.abs(self.pb.jacobian(self.system.q_ref[self.free], p0)[0].diagonal())
+        kbar = [float(np.mean(d[d > 0])) for d in (diag, d_ref) if np.any(d > 0)]
+        self.kbar = max(kbar) if kbar else 1.0
         F = self.pb.factor(K)
         b = None
         if F is not None:
@@ -617,7 +637,10 @@ class _Tracer:
         elif o["parameter_scale"] is not None:
             c = float(o["parameter_scale"])
         else:
-            c = o["psi"] * (nb if nb > 0 else 1.0)
+            # du/dp of a typical stiffness rather than |K^-1 g|: defined and moderate
+            # even when the start is close to a critical point
+            ng = float(np.linalg.norm(g))
+            c = o["psi"] * (ng / self.kbar if ng > 0 else 1.0)
         self.c2 = c * c
         # first step: parameter increment sets the arc length unless ds is given
         if o["ds"] is not None:
@@ -704,8 +727,8 @@ class _Tracer:
             nR = float(np.linalg.norm(R))
             if not np.isfinite(nR):
                 return None
-            scale = max(self.pb.external_norm(pb), float(np.linalg.norm(r[self.system.constrained])), self.kbar * self.ds)
-            if nR <= self.o["rtol"] * scale + self.o["atol"]:
+            scale = max(self.pb.external_norm(pb), float(np.linalg.norm(r[self.system.constrained])))
+            if nR <= max(self.o["rtol"] * scale + self.o["atol"], self.round_floor):
                 du, dp = u - self.u, pb - self.p
                 try:
                     t_du, t_dp, n_neg, _ = self.analyse_point(u, pb, du, dp, q)
@@ -841,16 +864,17 @@ class _Tracer:
             "n_free": int(self.free.size), "step": int(self.step), "branch": int(self.branch),
             "s": float(self.s), "p": float(self.p), "t_dp": float(self.t_dp), "ds": float(self.ds),
             "ds_min": float(self.ds_min), "ds_max": float(self.ds_max), "c2": float(self.c2),
-            "kbar": float(self.kbar), "n_neg": int(self.n_neg), "rejected": int(self.rejected),
+            "kbar": float(self.kbar), "round_floor": float(self.round_floor), "n_neg": int(self.n_neg), "rejected": int(self.rejected),
             "newton_total": int(self.newton_total), "switches": int(self.switches),
             "events": [e.to_dict() for e in self.events], "monitors": list(self.monitors),
         }
         arrays = {f"table_{k}": np.asarray(v, dtype=float) for k, v in self.table.items()}
         n_ev = len(self.events)
-        arrays["event_modes"] = np.array([e.mode for e in self.events]).reshape(n_ev, -1)
-        arrays["event_states"] = np.array([e.q for e in self.events]).reshape(n_ev, -1)
-        arrays["event_reactions"] = np.array([e.reactions for e in self.events]).reshape(n_ev, -1)
-        arrays["event_tangents"] = np.array([e.tangent for e in self.events]).reshape(n_ev, -1)
+        n, nt = self.system.n_dof, self.free.size + 1
+        arrays["event_modes"] = np.array([e.mode for e in self.events]).reshape(n_ev, n)
+        arrays["event_states"] = np.array([e.q for e in self.events]).reshape(n_ev, n)
+        arrays["event_reactions"] = np.array([e.reactions for e in self.events]).reshape(n_ev, n)
+        arrays["event_tangents"] = np.array([e.tangent for e in self.events]).reshape(n_ev, nt)
         tmp = f"{path}.tmp.npz"
         np.savez(tmp, meta=np.array(json.dumps(meta)), q=self.q, t_du=self.t_du, **arrays)
         os.replace(tmp, path)
@@ -874,7 +898,7 @@ class _Tracer:
             self.q = z["q"].copy()
             self.t_du = z["t_du"].copy()
             modes, states, reacts, tans = z["event_modes"], z["event_states"], z["event_reactions"], z["event_tangents"]
-        for k in ("step", "branch", "s", "p", "t_dp", "ds", "ds_min", "ds_max", "c2", "kbar", "n_neg", "rejected",
+        for k in ("step", "branch", "s", "p", "t_dp", "ds", "ds_min", "ds_max", "c2", "kbar", "round_floor", "n_neg", "rejected",
                   "newton_total", "switches"):
             setattr(self, k, meta[k])
         self.u = self.q[self.free].copy()
@@ -921,7 +945,7 @@ class _Tracer:
                             ev.message = "bifurcation and limit point in one step; bracket is the whole step"
                         ev.n_negative_after = n_neg
                         new_events.append(ev)
-                hit_bound = not lo_b <= p <= hi_b
+                hit_bound = (p >= hi_b and self.p < hi_b) or (p <= lo_b and self.p > lo_b) or not lo_b <= p <= hi_b
                 if hit_bound and o["land_on_bounds"]:
                     landed = self.land(u, p, lo_b, hi_b)
                     if landed is not None:
@@ -1011,7 +1035,7 @@ class _Tracer:
             success=success, message=message, status=status, control=self.control, steps=self.step,
             rejected_steps=self.rejected, newton_iterations=self.newton_total, table=table,
             states=self.states, state_steps=self.state_steps, events=self.events, timings=dict(self.timer.t),
-            monitors=tuple(self.monitors),
+            monitors=tuple(self.monitors), parameter_scale=math.sqrt(self.c2),
         )
 
 
@@ -1023,7 +1047,7 @@ def _options(**kw) -> dict:
         ds=None, initial_increment=None, ds_min=None, ds_max=None, constraint="spherical", psi=1.0,
         parameter_scale=None, max_steps=200, parameter_bounds=(-np.inf, np.inf), max_displacement=None,
         rtol=1e-10, atol=0.0, max_iterations=15, target_iterations=4, max_angle_deg=45.0,
-        max_inertia_cutbacks=3, stability=True, detect_events=True, locate_tol=1e-6,
+        max_inertia_cutbacks=3, stability=True, detect_events=True, locate_tol=1e-8,
         on_bifurcation="continue", branch_side=1, switch_direction=None, switch_ds=None, max_switches=1,
         stop_after_events=None, fixed_lam=1.0, fixed_mu=0.0, monitors=None, displacement_dof=None,
         store_states=True, linear_solver="ldl", land_on_bounds=True,
@@ -1091,8 +1115,8 @@ def trace_path(
     constraint : {"spherical", "cylindrical"}
         Arc-length constraint; cylindrical measures only the free DOFs.
     psi : float
-        Weight of the parameter in the spherical constraint (1: the first step
-        is split evenly between displacement and parameter).
+        Weight of the parameter in the spherical constraint (``c = psi |dG/dp| / k``
+        with ``k`` the mean diagonal of the starting tangent).
     parameter_scale : float
         Override for ``c`` in ``|du|^2 + c^2 dp^2 = ds^2``.
     max_steps : int
@@ -1105,8 +1129,9 @@ def trace_path(
         Stop when a free DOF moves further than this from the reference.
     rtol, atol : float
         Corrector tolerance ``|G| <= rtol * scale + atol``; ``scale`` is the
-        largest of the applied-load norm, the reaction norm and the force of a
-        step (mean tangent diagonal times ``ds``).
+        larger of the applied-load norm and the reaction norm (the predictor's
+        residual while both are zero). The tolerance is never below the
+        rounding level of the residual, ``16 eps max(diag K) max|q|``.
     max_iterations : int
         Corrector iterations before a cut-back (default 15).
     target_iterations : int
