@@ -241,7 +241,7 @@ def _eigs_near_zero(A, k: int, scale: float) -> np.ndarray:
 def inertia(
     A,
     factor: LDLFactor | None = None,
-    pivot_tol: float = 1e-10,
+    pivot_tol: float = 1e-6,
     band: float = 1e-8,
     zero_tol: float | None = None,
     dense_limit: int = 2000,
@@ -255,8 +255,9 @@ def inertia(
     factor : LDLFactor, optional
         An existing factorisation of ``A`` (saves refactorising).
     pivot_tol : float
-        Pivots smaller than ``pivot_tol`` times the largest diagonal entry make
-        the plain count untrustworthy.
+        A pivot smaller than ``pivot_tol`` times the largest diagonal entry may
+        hide an eigenvalue near zero (or a loss of accuracy), so the count is
+        then checked with shifted factorisations.
     band : float
         Half-width of the band around zero, relative to the largest diagonal
         entry, resolved by shifted factorisations and eigsh.
@@ -298,7 +299,10 @@ def inertia(
             f_hi = LDLFactor(A - sigma * eye)
         except SingularMatrixError:
             continue
-        if not (f_lo.trustworthy(pivot_tol) and f_hi.trustworthy(pivot_tol)):
+        # the shifted matrices have no eigenvalue in (-sigma, sigma): their pivots
+        # only need to be clear of rounding, not of the band
+        shifted_tol = min(pivot_tol, 1e-2 * rel)
+        if not (f_lo.trustworthy(shifted_tol) and f_hi.trustworthy(shifted_tol)):
             continue
         below_lo = f_lo.n_negative_pivots  # eigenvalues < -sigma
         below_hi = f_hi.n_negative_pivots  # eigenvalues < +sigma
