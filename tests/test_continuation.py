@@ -237,6 +237,8 @@ def test_secondary_branch_followed(braced_switch_runs):
     # the secondary branch leaves the plane on the requested side, starting next to the bifurcation point
     first = np.flatnonzero(on_secondary)[0]
     assert y[first] > 0 and np.linalg.norm(S[first] - bif.q) < 0.1
+    # the primary branch ends exactly at the located bifurcation point
+    assert np.array_equal(S[first - 1], bif.q) and res["lam"][first - 1] == bif.parameter
     assert np.all(y[on_secondary][: 10] > 1e-3)
     # the load drops after the bifurcation on this branch (unstable-symmetric)
     assert np.all(res["lam"][on_secondary][:5] < Pb)

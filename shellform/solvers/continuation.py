@@ -48,7 +48,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import ModelError
-from .linear import DirectFactor, SingularMatrixError
+from .linear import LUFactor, SingularMatrixError
 from .newton import solve_static
 from .stability import InertiaError, LDLFactor, critical_modes, inertia
 
@@ -347,7 +347,7 @@ class _Problem:
                 except SingularMatrixError:
                     self._ldl_prev = None
             try:
-                return DirectFactor(K)
+                return LUFactor(K)
             except SingularMatrixError:
                 return None
         finally:
@@ -362,7 +362,7 @@ class _Problem:
             if isinstance(F, LDLFactor):
                 res = np.linalg.norm(F._A @ x - b)
                 if res > 1e-8 * max(np.linalg.norm(b), 1e-300):
-                    x = DirectFactor(F._A).solve(b)
+                    x = LUFactor(F._A).solve(b)
             return x
         finally:
             self.timer.add("linear_algebra", t0)
@@ -376,7 +376,7 @@ class _Problem:
                 [[K, sp.csr_matrix(g.reshape(-1, 1))], [sp.csr_matrix(row_u.reshape(1, -1)), sp.csr_matrix([[row_p]])]],
                 format="csc",
             )
-            sol = DirectFactor(M).solve(np.concatenate([rhs_u, [rhs_p]]))
+            sol = LUFactor(M).solve(np.concatenate([rhs_u, [rhs_p]]))
             return sol[:n], float(sol[n])
         finally:
             self.timer.add("linear_algebra", t0)
@@ -666,6 +666,7 @@ class _Tracer:
             t_du, t_dp = -t_du, -t_dp
         self.u, self.p, self.q = u, float(p0), q
         self.t_du, self.t_dp = t_du, t_dp
+        self.accept(q)
         self.n_neg = self.count(K, F)
         self.step, self.branch, self.s = 0, 0, 0.0
         r = self.system.residual(q, lam)
@@ -875,6 +876,10 @@ class _Tracer:
         arrays["event_states"] = np.array([e.q for e in self.events]).reshape(n_ev, n)
         arrays["event_reactions"] = np.array([e.reactions for e in self.events]).reshape(n_ev, n)
         arrays["event_tangents"] = np.array([e.tangent for e in self.events]).reshape(n_ev, nt)
+        for k, obj in enumerate(self.history_objects()):
+            for name, value in obj.state().items():
+                arrays[f"history{k}_{name}"] = np.asarray(value)
+        meta["history_objects"] = len(self.history_objects())
         tmp = f"{path}.tmp.npz"
         np.savez(tmp, meta=np.array(json.dumps(meta)), q=self.q, t_du=self.t_du, **arrays)
         os.replace(tmp, path)
@@ -898,6 +903,15 @@ class _Tracer:
             self.q = z["q"].copy()
             self.t_du = z["t_du"].copy()
             modes, states, reacts, tans = z["event_modes"], z["event_states"], z["event_reactions"], z["event_tangents"]
+            objs = self.history_objects()
+            if meta.get("history_objects", 0) != len(objs):
+                raise ModelError(
+                    f"checkpoint {path} holds history for {meta.get('history_objects', 0)} objects, "
+                    f"this system has {len(objs)}"
+                )
+            for k, obj in enumerate(objs):
+                prefix = f"history{k}_"
+                obj.restore({key[len(prefix):]: z[key].copy() for key in z.files if key.startswith(prefix)})
         for k in ("step", "branch", "s", "p", "t_dp", "ds", "ds_min", "ds_max", "c2", "kbar", "round_floor", "n_neg", "rejected",
                   "newton_total", "switches"):
             setattr(self, k, meta[k])
@@ -952,11 +966,27 @@ class _Tracer:
                         u, p, q, r, its, du, dp, t_du, t_dp, n_neg = landed
                         ds = self.norm(du, dp)
                         new_events = [e for e in new_events if lo_b <= e.parameter <= hi_b]
+                # switching branches: the primary branch ends at the bifurcation point
+                switch_ev = None
+                if o["on_bifurcation"] == "switch" and self.switches < o["max_switches"]:
+                    bifs = [e for e in new_events if e.kind == "bifurcation" and e.located]
+                    switch_ev = bifs[0] if bifs else None
+                if switch_ev is not None:
+                    ev = switch_ev
+                    ev.switched = True
+                    q = ev.q.copy()
+                    u, p = q[self.free].copy(), ev.parameter
+                    r = self.system.residual(q, self.pb.lam_mu(p)[0])
+                    its, ds = 0, ev.arc_length - self.s
+                    t_du, t_dp, n_neg = ev.tangent[:-1], ev.tangent[-1], ev.n_negative_after
+                    new_events = [e for e in new_events if e.arc_length <= ev.arc_length]
+                    hit_bound = False
                 # accept the step
                 self.step += 1
                 self.s += ds
                 self.u, self.p, self.q = u, p, q
                 self.t_du, self.t_dp, self.n_neg = t_du, t_dp, n_neg
+                self.accept(q)
                 pt = self.record(q, r, p, its, ds, n_neg)
                 self.events.extend(new_events)
                 # adapt the step length from the Newton iteration count
@@ -967,17 +997,12 @@ class _Tracer:
                 self.ds = min(max(ds * factor, self.ds_min), self.ds_max)
                 if callback is not None and callback(pt):
                     raise StopIteration
-                # branch switching at a bifurcation
-                bifs = [e for e in new_events if e.kind == "bifurcation" and e.located]
-                if bifs and o["on_bifurcation"] == "switch" and self.switches < o["max_switches"]:
-                    ev = bifs[0]
-                    ev.switched = True
-                    u_b = ev.q[self.free]
+                # leave the bifurcation point along the critical mode (or the given shape)
+                if switch_ev is not None:
                     direction = o["switch_direction"]
                     mode = (np.asarray(direction, dtype=float)[self.free] if direction is not None
-                            else ev.mode[self.free])
-                    self._do_switch(u_b, ev.parameter, ev.tangent[:-1], ev.tangent[-1], mode,
-                                    ev.arc_length)
+                            else switch_ev.mode[self.free])
+                    self._do_switch(self.u, self.p, self.t_du, self.t_dp, mode, self.s)
                     pt = self._record_current()
                     if callback is not None and callback(pt):
                         raise StopIteration
@@ -1021,7 +1046,25 @@ class _Tracer:
         self.s = s_b + self.norm(du, dp)
         self.u, self.p, self.q = u, p, q
         self.t_du, self.t_dp, self.n_neg = t_du2, t_dp2, n_neg
+        self.accept(q)
         self._last = (q, r, p, its, self.norm(du, dp), n_neg)
+
+    # -- effects with history (rod reference frames) ------------------------------------------------
+    def accept(self, q):
+        """Tell effects with history that ``q`` is accepted (rod frames follow the path)."""
+        hook = getattr(self.system, "accept", None)
+        if hook is not None:
+            hook(q)
+
+    def history_objects(self):
+        """Objects holding path history that a checkpoint must carry (rod reference frames)."""
+        objs, seen = [], set()
+        for e in self.system.effects:
+            f = getattr(e, "frames", None)
+            if f is not None and hasattr(f, "state") and hasattr(f, "restore") and id(f) not in seen:
+                seen.add(id(f))
+                objs.append(f)
+        return objs
 
     def _record_current(self):
         return self.record(*self._last)
