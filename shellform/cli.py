@@ -27,7 +27,7 @@ def _cmd_run(args) -> int:
     scene = load_scene(path)
     progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
     progress(f"scene: {path}")
-    summary = run_scene(scene, args.out, progress)
+    summary = run_scene(scene, args.out, progress, resume=args.resume)
     progress(f"results in {Path(args.out).resolve()} ({summary['wall_time_s']:.2f} s)")
     return 0 if summary.get("converged", False) else 1
 
@@ -47,6 +47,7 @@ def main(argv=None) -> int:
     run.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
     run.add_argument("--out", default="results", help="output directory (default: ./results)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted path from DIR/checkpoint.npz")
     run.set_defaults(func=_cmd_run)
     schema = sub.add_parser("schema", help="print the scene reference (Markdown)")
     schema.set_defaults(func=_cmd_schema)

@@ -95,7 +95,9 @@ SCENE = Table(
             fill_defaults=True,
             doc="What to compute.",
             keys={
-                "type": Key("str", "Analysis to run.", default="static", choices=("static",)),
+                "type": Key("str", "Analysis to run: one static solve, or a path traced by arc-length "
+                            "continuation (settings in [analysis.continuation]).", default="static",
+                            choices=("static", "continuation")),
                 "load_factor": Key("float", "Factor on the scaled loads.", default=1.0),
                 "prescribed": Key("float", "Prescribed-displacement parameter.", default=0.0),
                 "start": Key("points", "Starting coordinates (default: the reference).", default=None, unit="m"),
@@ -105,6 +107,36 @@ SCENE = Table(
                 "rtol": Key("float", "Residual tolerance relative to the load/reaction norm.", default=1e-10,
                             minimum=0.0, exclusive_minimum=True),
                 "linear_solver": Key("str", "Linear solver.", default="direct", choices=("direct", "amg", "auto")),
+                "continuation": Table(
+                    fill_defaults=True,
+                    doc="Arc-length continuation (used when type = 'continuation'). The path starts from "
+                        "equilibrium at parameter 0 (the other parameter at its [analysis] value).",
+                    keys={
+                        "control": Key("str", "Path parameter: the load factor or the prescribed-displacement "
+                                       "parameter.", default="load", choices=("load", "displacement")),
+                        "max_steps": Key("int", "Accepted steps before stopping.", default=200, minimum=1),
+                        "parameter_min": Key("float", "Stop when the parameter falls below this.", default=None),
+                        "parameter_max": Key("float", "Stop when the parameter exceeds this.", default=None),
+                        "initial_increment": Key("float", "First parameter increment (default: 1/20 of the "
+                                                 "distance to the bound).", default=None),
+                        "max_displacement": Key("float", "Stop when a free DOF moves further than this.",
+                                                default=None, unit="m", minimum=0.0, exclusive_minimum=True),
+                        "constraint": Key("str", "Arc-length constraint.", default="spherical",
+                                          choices=("spherical", "cylindrical")),
+                        "stability": Key("bool", "Count negative eigenvalues of the tangent at every point.",
+                                         default=True),
+                        "on_bifurcation": Key("str", "At a bifurcation: stay on the primary branch, follow the "
+                                              "secondary one, or stop.", default="continue",
+                                              choices=("continue", "switch", "stop")),
+                        "branch_side": Key("int", "Which half of the secondary branch (+1 or -1).", default=1),
+                        "monitor_node": Key("int", "Node whose displacement is the curve's abscissa (default: "
+                                            "the most loaded or driven DOF).", default=None, minimum=0),
+                        "monitor_component": Key("str", "Component of monitor_node.", default="z",
+                                                 choices=("x", "y", "z")),
+                        "checkpoint_every": Key("int", "Write a checkpoint every this many steps.", default=10,
+                                                minimum=1),
+                    },
+                ),
             },
         ),
         "output": Table(
@@ -130,6 +162,16 @@ def parse_scene(data: dict) -> dict:
             v = m[k]
             if isinstance(v, np.ndarray) and len(v) != len(m["connectivity"]):
                 raise SceneError(f"members[{i}].{k}", f"has {len(v)} values for {len(m['connectivity'])} members")
+    c = scene["analysis"]["continuation"]
+    if scene["analysis"]["type"] == "continuation":
+        if c["initial_increment"] is None and c["parameter_min"] is None and c["parameter_max"] is None:
+            raise SceneError("analysis.continuation.parameter_max",
+                             "the path needs a scale: give parameter_max, parameter_min or initial_increment")
+        if c["initial_increment"] is not None and c["initial_increment"] == 0.0:
+            raise SceneError("analysis.continuation.initial_increment", "must not be zero")
+    mon = c["monitor_node"]
+    if mon is not None and mon >= n:
+        raise SceneError("analysis.continuation.monitor_node", f"node {mon} is out of range (the scene has {n} nodes)")
     start = scene["analysis"]["start"]
     if start is not None and len(start) != n:
         raise SceneError("analysis.start", f"has {len(start)} points; the scene has {n} nodes")

@@ -161,3 +161,49 @@ def test_scene_reference_in_docs_matches_the_schema(capsys):
     generated = capsys.readouterr().out.strip()
     docs = (Path(__file__).parents[1] / "docs" / "scenes.md").read_text()
     assert generated in docs, "docs/scenes.md is out of date: paste the output of `shellform schema`"
+
+
+CONTINUATION = VON_MISES.replace(
+    "[analysis]\nload_factor = 20.0\n",
+    "[analysis]\ntype = \"continuation\"\n[analysis.continuation]\ncontrol = \"load\"\n"
+    "parameter_max = 40.0\nmax_displacement = 0.5\nmonitor_node = 1\nmax_steps = 60\n",
+)
+
+
+def test_continuation_scene_writes_path_events_and_plot(tmp_path):
+    from shellform.io.table import read_csv
+
+    scene = tmp_path / "path.toml"
+    scene.write_text(CONTINUATION)
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    alpha = np.arctan(0.2)
+    p_cr = 2 * 1.0e4 * np.sin(np.arccos(np.cos(alpha) ** (1 / 3))) ** 3
+    limits = [e["load"] for e in summary["events"] if e["kind"] == "limit"]
+    assert limits and limits[0] == pytest.approx(p_cr, rel=5e-3)
+    table = read_csv(out / "path.csv")
+    assert {"step", "lam", "n_negative", "iterations", "uz1"} <= set(table)
+    assert len(table["step"]) == summary["points"]
+    assert table["n_negative"].max() == 1  # the descending branch is unstable
+    with meshio.xdmf.TimeSeriesReader(out / "path.xdmf") as reader:
+        reader.read_points_cells()
+        assert reader.num_steps == summary["points"]
+    assert (out / "load_displacement.png").stat().st_size > 1000
+
+
+def test_interrupted_continuation_resumes_from_its_checkpoint(tmp_path):
+    from shellform.io.table import read_csv
+
+    full, part = tmp_path / "full.toml", tmp_path / "part.toml"
+    full.write_text(CONTINUATION.replace("checkpoint_every", "x"))
+    part.write_text(CONTINUATION.replace("max_steps = 60", "max_steps = 6\ncheckpoint_every = 2"))
+    assert main(["run", str(full), "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    assert main(["run", str(part), "--out", str(tmp_path / "b"), "--quiet"]) == 0
+    assert len(read_csv(tmp_path / "b" / "path.csv")["step"]) == 7
+    # the same scene with the full step budget, resumed where the short run stopped
+    part.write_text(CONTINUATION.replace("max_steps = 60", "max_steps = 60\ncheckpoint_every = 2"))
+    assert main(["run", str(part), "--out", str(tmp_path / "b"), "--quiet", "--resume"]) == 0
+    a, b = read_csv(tmp_path / "a" / "path.csv"), read_csv(tmp_path / "b" / "path.csv")
+    assert len(a["step"]) == len(b["step"])
+    assert np.allclose(a["lam"], b["lam"], rtol=1e-8, atol=1e-10)
