@@ -32,6 +32,19 @@ def _cmd_run(args) -> int:
     return 0 if summary.get("converged", False) else 1
 
 
+def _cmd_validate(args) -> int:
+    from .validation import run_validation
+
+    progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    try:
+        results = run_validation(args.cases, args.out, progress)
+    except KeyError as exc:
+        print(f"shellform: error: {exc.args[0]}", file=sys.stderr)
+        return 2
+    progress(f"report: {Path(args.out).resolve() / 'report.md'}")
+    return 0 if all(r.passed for r in results) else 1
+
+
 def _cmd_schema(args) -> int:
     from .schema import describe
     from .scene import SCENE
@@ -49,6 +62,11 @@ def main(argv=None) -> int:
     run.add_argument("--quiet", action="store_true", help="no progress output")
     run.add_argument("--resume", action="store_true", help="continue an interrupted path from DIR/checkpoint.npz")
     run.set_defaults(func=_cmd_run)
+    val = sub.add_parser("validate", help="reproduce published and analytic results; write report.md")
+    val.add_argument("cases", nargs="*", help="case names (default: all)")
+    val.add_argument("--out", default="validation-report", help="output directory (default: ./validation-report)")
+    val.add_argument("--quiet", action="store_true", help="no progress output")
+    val.set_defaults(func=_cmd_validate)
     schema = sub.add_parser("schema", help="print the scene reference (Markdown)")
     schema.set_defaults(func=_cmd_schema)
     args = parser.parse_args(argv)

@@ -6,6 +6,7 @@ from fd import fd_jacobian, relative_error
 from scipy.optimize import brentq
 
 import shellform as sf
+from shellform.validation.cases_core import catenary_sag, hanging_chain
 
 
 def von_mises(L=1.0, H=0.2, EA=1.0e4):
@@ -78,30 +79,9 @@ def test_von_mises_beyond_limit_load_fails_clearly_or_jumps_to_inverted_state():
         assert von_mises_load(theta, alpha, EA) == pytest.approx(P, rel=1e-8)
 
 
-def catenary_chain(span=10.0, length=12.0, n=200, w=1.0, EA=1.0e8, start_stretch=1.01):
-    """A chain of n equal ropes hung between two supports.
-
-    The start is a parabola through the supports whose arc length is
-    ``start_stretch`` times the chain length, sampled at equal arc length so
-    that every rope starts equally (and slightly) taut.
-    """
-    s = sf.Structure(np.column_stack([np.linspace(0, span, n + 1), np.zeros(n + 1), np.zeros(n + 1)]))
-    conn = np.column_stack([np.arange(n), np.arange(1, n + 1)])
-    s.add_ropes(conn, EA=EA, rest_length=length / n, mass_per_length=w / 9.81)
-    s.fix([0, n])
-    s.set_gravity()
-
-    xf = np.linspace(0, span, 20 * n + 1)
-
-    def parabola(f):
-        z = -4 * f * xf * (span - xf) / span**2
-        return z, np.concatenate([[0], np.cumsum(np.hypot(np.diff(xf), np.diff(z)))])
-
-    f0 = brentq(lambda f: parabola(f)[1][-1] - start_stretch * length, 1e-3, span)
-    z, arc = parabola(f0)
-    s_target = np.linspace(0, arc[-1], n + 1)
-    q0 = np.column_stack([np.interp(s_target, arc, xf), np.zeros(n + 1), np.interp(s_target, arc, z)])
-    return s, q0.ravel()
+def catenary_chain(span=10.0, length=12.0, n=200):
+    """The validation case's chain: equal ropes started 1 % long on a parabola."""
+    return hanging_chain(span, length, n)
 
 
 def test_hanging_chain_sag_matches_catenary():
@@ -111,6 +91,7 @@ def test_hanging_chain_sag_matches_catenary():
     assert res.success, res.message
     a = brentq(lambda a: 2 * a * np.sinh(span / (2 * a)) - length, 0.1, 100.0)
     sag_exact = a * (np.cosh(span / (2 * a)) - 1)
+    assert catenary_sag(span, length) == pytest.approx(sag_exact, rel=1e-12)
     sag = -res.q.reshape(-1, 3)[:, 2].min()
     assert abs(sag - sag_exact) / sag_exact < 5e-3
     # and every rope is taut at equilibrium
