@@ -45,6 +45,16 @@ def _cmd_validate(args) -> int:
     return 0 if all(r.passed for r in results) else 1
 
 
+def _cmd_sweep(args) -> int:
+    from .sweep import run_sweep
+
+    progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    rows = run_sweep(args.scene, args.param, args.out, scheduler=args.scheduler, workers=args.workers,
+                     progress=progress, plot_y=args.plot)
+    progress(f"table: {Path(args.out).resolve() / 'sweep.csv'}")
+    return 0 if all(r.get("converged", False) for r in rows) else 1
+
+
 def _cmd_schema(args) -> int:
     from .schema import describe
     from .scene import SCENE
@@ -67,6 +77,16 @@ def main(argv=None) -> int:
     val.add_argument("--out", default="validation-report", help="output directory (default: ./validation-report)")
     val.add_argument("--quiet", action="store_true", help="no progress output")
     val.set_defaults(func=_cmd_validate)
+    sw = sub.add_parser("sweep", help="run a parameter study in parallel with Dask")
+    sw.add_argument("scene", help="base scene TOML file")
+    sw.add_argument("--param", action="append", required=True, metavar="KEY=V1,V2,...",
+                    help="scene key path and its values, e.g. members[0].EA=1e3,1e4 (repeatable: all combinations)")
+    sw.add_argument("--out", default="sweep", help="output directory (default: ./sweep)")
+    sw.add_argument("--scheduler", default=None, help="Dask scheduler address (default: a local cluster)")
+    sw.add_argument("--workers", type=int, default=2, help="local cluster processes (default: 2)")
+    sw.add_argument("--plot", default=None, help="summary entry to plot against the first parameter")
+    sw.add_argument("--quiet", action="store_true", help="no progress output")
+    sw.set_defaults(func=_cmd_sweep)
     schema = sub.add_parser("schema", help="print the scene reference (Markdown)")
     schema.set_defaults(func=_cmd_schema)
     args = parser.parse_args(argv)

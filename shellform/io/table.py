@@ -18,6 +18,14 @@ def _temporary(path: Path, suffix: str) -> str:
     return tmp
 
 
+def _cell(v):
+    if isinstance(v, (bool, np.bool_)):
+        return int(v)  # 1/0 reads back as a number everywhere
+    if isinstance(v, (float, np.floating)):
+        return f"{v:.10g}"
+    return v
+
+
 def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None = None) -> Path:
     """Write equal-length columns as CSV with a header row."""
     path = Path(path)
@@ -31,7 +39,7 @@ def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None
             w = csv.writer(fh)
             w.writerow(columns)
             for row in zip(*(table[c] for c in columns)):
-                w.writerow([f"{v:.10g}" if isinstance(v, (float, np.floating)) else v for v in row])
+                w.writerow([_cell(v) for v in row])
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -40,11 +48,18 @@ def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None
 
 
 def read_csv(path) -> dict[str, np.ndarray]:
-    """Read a CSV written by :func:`write_csv` back into float columns."""
+    """Read a CSV written by :func:`write_csv`: numeric columns as floats, others as strings."""
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
     head, body = rows[0], rows[1:]
-    return {c: np.array([float(r[i]) for r in body]) for i, c in enumerate(head)}
+    out = {}
+    for i, c in enumerate(head):
+        col = [r[i] for r in body]
+        try:
+            out[c] = np.array([float(v) for v in col])
+        except ValueError:
+            out[c] = np.array(col)
+    return out
 
 
 def plot_curve(path, x, y, xlabel: str, ylabel: str, title: str = "", marks=(), stable=None) -> Path:
