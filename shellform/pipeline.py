@@ -60,6 +60,10 @@ def run_static(scene: dict, out: Path, progress: Progress, resume: bool = False)
         path = out / f"state.{fmt}"
         if fmt == "xdmf":
             write_series(path, system, [(a["load_factor"], res.q, a["load_factor"])])
+        elif fmt == "3dm":
+            from .io.rhino import structure_3dm
+
+            structure_3dm(path, system, res.q)
         else:
             write_state(path, system, res.q, a["load_factor"])
         files.append(path.name)

@@ -143,8 +143,8 @@ SCENE = Table(
             fill_defaults=True,
             doc="What to write.",
             keys={
-                "formats": Key("str_list", "Mesh formats of the final state.", default=["vtu", "xdmf"],
-                               choices=("vtu", "vtk", "xdmf")),
+                "formats": Key("str_list", "Formats of the final state (3dm: Rhino, needs the rhino extra).",
+                               default=["vtu", "xdmf"], choices=("vtu", "vtk", "xdmf", "3dm")),
             },
         ),
     },
