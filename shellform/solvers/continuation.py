@@ -491,13 +491,20 @@ class _Tracer:
             du, dp = -du, -dp
         return du, dp
 
-    def count(self, K, F=None):
+    def count(self, K, F=None, signed=False):
+        """Negative eigenvalues of ``K``: beyond the zero tolerance, or (``signed``) of any size.
+
+        Along the path a tiny eigenvalue counts as zero so that rounding noise
+        next to a critical point is not reported as an event; the bisection
+        that locates an event uses the sign of even the tiniest eigenvalue.
+        """
         if not self.o["stability"]:
             return -1
         t0 = time.perf_counter()
         try:
             fac = F if isinstance(F, LDLFactor) else None
-            return inertia(K, factor=fac).n_below_zero
+            I = inertia(K, factor=fac)
+            return I.n_below_zero if signed else I.n_negative
         except InertiaError:
             return -1
         finally:
@@ -789,7 +796,7 @@ class _Tracer:
                     du, dp = self.tangent_from(K, g, F, u - u0, p - p0)
                     before = math.copysign(1.0, dp) == sign_A
                 else:
-                    before = self.count(K, None) == n_A
+                    before = self.count(K, None, signed=True) == n_A
                 if before:
                     lo, lo_pt = mid, pt
                 else:
@@ -1044,6 +1051,8 @@ class _Tracer:
         self.branch += 1
         self.step += 1
         self.s = s_b + self.norm(du, dp)
+        # the secondary branch starts with the step length that left the bifurcation
+        self.ds = min(max(self.ds, self.norm(du, dp)), self.ds_max)
         self.u, self.p, self.q = u, p, q
         self.t_du, self.t_dp, self.n_neg = t_du2, t_dp2, n_neg
         self.accept(q)

@@ -263,7 +263,8 @@ def inertia(
         entry, resolved by shifted factorisations and eigsh.
     zero_tol : float, optional
         Eigenvalues with magnitude up to this count as zero; default
-        ``1e-11`` times the largest diagonal entry.
+        ``1e-13`` times the largest diagonal entry (a few hundred times the
+        rounding level of the eigenvalues).
     dense_limit : int
         Largest size for the last-resort dense eigenvalue count.
 
@@ -279,7 +280,7 @@ def inertia(
     A = sp.csr_matrix(A)
     n = A.shape[0]
     scale = _diag_scale(A)
-    ztol = 1e-11 * scale if zero_tol is None else float(zero_tol)
+    ztol = 1e-13 * scale if zero_tol is None else float(zero_tol)
     if factor is None:
         try:
             factor = LDLFactor(A)
@@ -290,6 +291,9 @@ def inertia(
         m = factor.n_negative_pivots
         return Inertia(m, 0, n - m, m, "ldl", ratio, ztol)
 
+    if n <= DENSE_LIMIT:
+        # small: all eigenvalues cost less than two more factorisations
+        return _dense_inertia(A, ztol, "dense", ratio)
     # bracket zero: K + s I counts eigenvalues below -s, K - s I those below +s
     eye = sp.identity(n, format="csr")
     for rel in (band, 10 * band, 100 * band):
