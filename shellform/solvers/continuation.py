@@ -436,6 +436,7 @@ class _Tracer:
         self.rejected = 0
         self.newton_total = 0
         self.switches = 0
+        self.finished = None  # (status, message, success) once a run has ended
 
     # -- metric -----------------------------------------------------------------------
     def dot(self, du1, dp1, du2, dp2):
@@ -875,6 +876,7 @@ class _Tracer:
             "kbar": float(self.kbar), "round_floor": float(self.round_floor), "n_neg": int(self.n_neg), "rejected": int(self.rejected),
             "newton_total": int(self.newton_total), "switches": int(self.switches),
             "events": [e.to_dict() for e in self.events], "monitors": list(self.monitors),
+            "finished": self.finished,
         }
         arrays = {f"table_{k}": np.asarray(v, dtype=float) for k, v in self.table.items()}
         n_ev = len(self.events)
@@ -923,6 +925,7 @@ class _Tracer:
                   "newton_total", "switches"):
             setattr(self, k, meta[k])
         self.u = self.q[self.free].copy()
+        self.finished = tuple(meta["finished"]) if meta.get("finished") else None
         self.events = [
             PathEvent(**ev, mode=modes[i], q=states[i], reactions=reacts[i], tangent=tans[i])
             for i, ev in enumerate(meta["events"])
@@ -934,6 +937,11 @@ class _Tracer:
         t_start = time.perf_counter()
         status, message, success = "max_steps", "", True
         lo_b, hi_b = o["parameter_bounds"]
+        if self.finished is not None and self.finished[0] not in ("max_steps", "callback"):
+            # resumed from the checkpoint of a run that ended for good: nothing to add
+            status, message, success = self.finished
+            self.timer.t["total"] = time.perf_counter() - t_start
+            return self.result(success, message, status)
         try:
             if first_point is not None and callback is not None:
                 if callback(first_point):
@@ -1037,6 +1045,7 @@ class _Tracer:
             status, message = "callback", f"stopped by the callback after step {self.step}"
         except _StepFailure as exc:
             status, message, success = "failed", str(exc), False
+        self.finished = (status, message, success)
         if checkpoint is not None:
             self.save(checkpoint)
         self.timer.t["total"] = time.perf_counter() - t_start

@@ -1,0 +1,45 @@
+"""Files of a continuation run: CSV table, PNG plot, event summary, resuming."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from test_continuation_models import H, L, P_CR, truss_load, von_mises
+
+from shellform.path import plot_path, read_path_csv, run_continuation_case, write_path_csv
+from shellform.solvers.continuation import TABLE_COLUMNS, trace_path
+
+
+def test_csv_round_trip_and_plot(tmp_path):
+    system = von_mises("load")
+    res = trace_path(system, "load", initial_increment=P_CR / 10, max_steps=30, max_displacement=2.2 * H,
+                     monitors={"apex_z": 5})
+    csv_path = write_path_csv(res, tmp_path / "path.csv")
+    table = read_path_csv(csv_path)
+    assert list(table) == list(TABLE_COLUMNS) + ["apex_z"]
+    for k, v in res.table.items():
+        assert np.array_equal(table[k], v), k  # repr round trip is exact
+    z = np.linspace(H, -1.2 * H, 200)
+    png = plot_path(res, tmp_path / "path.png", reference=(H - z, truss_load(np.arctan2(z, L))))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_run_continuation_case_writes_files_and_resumes(tmp_path):
+    system = von_mises("load")
+    lines = []
+    opts = dict(initial_increment=P_CR / 10, max_displacement=2.2 * H, max_steps=200)
+    res, summary = run_continuation_case(system, tmp_path, "load", progress=lines.append, **opts)
+    assert res.success
+    for f in ("path.csv", "path.png", "path_events.json", "path_checkpoint.npz"):
+        assert (tmp_path / f).exists(), f
+    on_disk = json.loads((tmp_path / "path_events.json").read_text())
+    assert on_disk["status"] == "displacement_bound"
+    assert [e["kind"] for e in on_disk["events"]] == ["limit", "limit"]
+    assert abs(on_disk["events"][0]["parameter"] - P_CR) < 1e-9 * P_CR
+    assert len(lines) == res.n_points + 1 and "negative eigenvalues" in lines[0]
+    # started again: the finished run is picked up from its checkpoint, not recomputed
+    lines2 = []
+    res2, _ = run_continuation_case(system, tmp_path, "load", progress=lines2.append, **opts)
+    assert res2.n_points == res.n_points and len(lines2) == 1
+    assert np.array_equal(res2["lam"], res["lam"])
