@@ -7,7 +7,7 @@ import sys
 from importlib import resources
 from pathlib import Path
 
-from .errors import ShellformError
+from .errors import SceneError, ShellformError
 
 DEFAULT_SCENE = "default"
 
@@ -19,11 +19,30 @@ def _builtin_scene(name: str) -> Path:
     return Path(str(path))
 
 
+def builtin_scenes() -> list[str]:
+    """Names of the scenes shipped with shellform."""
+    folder = resources.files("shellform") / "scenes"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def _scene_path(arg: str | None) -> Path:
+    """A scene file, or the built-in scene of that name (default: the default scene)."""
+    if arg is None:
+        return _builtin_scene(DEFAULT_SCENE)
+    path = Path(arg)
+    if path.exists() or path.suffix == ".toml":
+        return path
+    try:
+        return _builtin_scene(arg)
+    except FileNotFoundError:
+        raise SceneError(arg, f"no such file and no built-in scene of that name; built-in: {', '.join(builtin_scenes())}")
+
+
 def _cmd_run(args) -> int:
     from .pipeline import run_scene
     from .scene import load_scene
 
-    path = Path(args.scene) if args.scene else _builtin_scene(DEFAULT_SCENE)
+    path = _scene_path(args.scene)
     scene = load_scene(path)
     progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
     progress(f"scene: {path}")
@@ -67,7 +86,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="shellform", description="Form finding and post-buckling of gridshells.")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene and write results")
-    run.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
+    run.add_argument("scene", nargs="?", help="scene TOML file or the name of a built-in scene "
+                     "(default: the built-in default scene)")
     run.add_argument("--out", default="results", help="output directory (default: ./results)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
     run.add_argument("--resume", action="store_true", help="continue an interrupted path from DIR/checkpoint.npz")
