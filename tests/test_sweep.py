@@ -8,28 +8,11 @@ from shellform.cli import main
 from shellform.errors import SceneError
 from shellform.io.table import read_csv
 from shellform.sweep import parse_param, parse_path, set_value
+from test_io_and_cli import VON_MISES
 
 pytest.importorskip("dask.distributed")
 
-SCENE = """
-title = "two-bar truss"
-[nodes]
-coordinates = [[-1.0, 0.0, 0.0], [0.0, 0.0, 0.2], [1.0, 0.0, 0.0]]
-[[members]]
-kind = "bar"
-connectivity = [[0, 1], [1, 2]]
-EA = 1.0e4
-[[supports]]
-nodes = [0, 2]
-[[supports]]
-nodes = [1]
-dofs = "y"
-[[loads]]
-nodes = [1]
-force = [0.0, 0.0, -1.0]
-[analysis]
-load_factor = 5.0
-"""
+SCENE = VON_MISES.replace("load_factor = 20.0", "load_factor = 5.0")
 
 
 def test_sweep_over_four_values_on_a_local_cluster(tmp_path):
