@@ -1,0 +1,39 @@
+"""Gridshells built from rod networks: the pre-stressed hemisphere and its apex indentation."""
+
+from .hemisphere import (
+    PAPER,
+    HemisphereModel,
+    PrestressResult,
+    build_hemisphere,
+    compare_shapes,
+    prestress_by_paths,
+    prestress_on_net,
+)
+from .indentation import (
+    IndentationResult,
+    IndentationSetup,
+    Snap,
+    classify_configuration,
+    configuration_features,
+    count_negative,
+    indentation_system,
+    trace_indentation,
+)
+
+__all__ = [
+    "PAPER",
+    "HemisphereModel",
+    "PrestressResult",
+    "build_hemisphere",
+    "compare_shapes",
+    "prestress_by_paths",
+    "prestress_on_net",
+    "IndentationResult",
+    "IndentationSetup",
+    "Snap",
+    "classify_configuration",
+    "configuration_features",
+    "count_negative",
+    "indentation_system",
+    "trace_indentation",
+]

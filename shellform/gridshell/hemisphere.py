@@ -1,0 +1,399 @@
+"""The pre-stressed hemispherical gridshell of discrete elastic rods.
+
+The rods are straight when unstressed and are laid out as a square grid in the
+plane; bent onto the Chebyshev net of the hemisphere
+(:func:`shellform.geometry.chebyshev.chebyshev_hemisphere`) they keep the
+distance ``h`` between joints along every rod. Each inter-joint segment is
+cut into ``round(h / dl)`` edges (``dl`` the Voronoi length), so every joint is
+a rod node and all edges of a segment have the same rest length.
+
+Two ways to reach the pre-stressed hemisphere are offered:
+
+* :func:`prestress_by_paths` (the paper's route): the model starts flat (a
+  small upward bump chooses the buckling direction), the pinned rod ends are
+  moved along straight paths in the plane from their footprint to the
+  equator, and the structure is relaxed in load steps.
+* :func:`prestress_on_net` (the cheaper route): the model starts on the net
+  itself, with the rest lengths of the planar rods, and one static Newton
+  solve relaxes it. The net is already nearly in equilibrium: on a sphere the
+  geodesic torsion of every curve vanishes, so rods with their first director
+  along the surface normal carry it along as the normal without twist, which
+  is exactly how a flat strip bends onto the sphere.
+
+Both give the same equilibrium (see :func:`compare_shapes`).
+
+Units are SI; the paper's defaults are in :data:`PAPER`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..assembly import System
+from ..errors import ModelError
+from ..geometry.chebyshev import ChebyshevHemisphere, chebyshev_hemisphere
+from ..model import Structure
+from ..rods.network import NodePath, RodNetwork, build_rod_system, circular_section
+from ..rods.statics import solve_incremental
+from ..solvers.newton import solve_static
+
+#: parameters of the gridshell paper (published.toml, [hemisphere.parameters])
+PAPER = dict(
+    radius=0.0764 / 2.0,
+    rod_radius=1.0e-3,
+    youngs_modulus=100.0e9,
+    density=1000.0,
+    voronoi_length=1.0e-3,
+)
+
+
+@dataclass
+class HemisphereModel:
+    """A hemispherical gridshell model: geometry, structure, rods and the nodes that matter.
+
+    Attributes
+    ----------
+    net : ChebyshevHemisphere
+        The Chebyshev net (rod geometry on the sphere and in the plane).
+    structure : Structure
+    network : RodNetwork
+    configuration : {"sphere", "plane"}
+        Where the reference nodes sit: on the net, or in the flat footprint.
+    rod_nodes : list of ndarray
+        Node indices along each rod, in the order of ``net.rods``.
+    rod_stations : list of ndarray
+        Arc-length coordinate of every node along its rod (the planar position).
+    joint_nodes : ndarray (k, 2)
+        For every joint, the node on its u rod and on its v rod (equal for shared joints).
+    joint_keys : list of (int, int)
+        ``(u_index, v_index)`` of every joint.
+    end_nodes : ndarray (2n, 2)
+        First and last node of every rod (pinned on the equator).
+    sphere_nodes, plane_nodes : ndarray (n_nodes, 3)
+        Node positions on the net and in the flat footprint.
+    equator_ends : ndarray (2n, 2, 3)
+        Positions of the rod ends on the equator.
+    EI : float
+        Bending stiffness of a rod [N m^2].
+    params : dict
+        The parameters the model was built with.
+    """
+
+    net: ChebyshevHemisphere
+    structure: Structure
+    network: RodNetwork
+    configuration: str
+    rod_nodes: list
+    rod_stations: list
+    joint_nodes: np.ndarray
+    joint_keys: list
+    end_nodes: np.ndarray
+    sphere_nodes: np.ndarray
+    plane_nodes: np.ndarray
+    equator_ends: np.ndarray
+    EI: float
+    params: dict = field(default_factory=dict)
+    paths: list = field(default_factory=list)
+
+    @property
+    def radius(self) -> float:
+        return self.net.radius
+
+    @property
+    def n(self) -> int:
+        return self.net.n
+
+    def rod_index(self, family: str, index: int) -> int:
+        for k, r in enumerate(self.net.rods):
+            if r.family == family and r.index == index:
+                return k
+        raise ModelError(f"hemisphere: no rod {family}{index}")
+
+    def joint(self, u_index: int, v_index: int) -> np.ndarray:
+        """Node(s) of a joint: ``[node on u rod, node on v rod]``."""
+        for key, nodes in zip(self.joint_keys, self.joint_nodes):
+            if key == (u_index, v_index):
+                return nodes
+        raise ModelError(f"hemisphere: no joint ({u_index}, {v_index})")
+
+    @property
+    def apex_nodes(self) -> np.ndarray:
+        """The apex joint's node(s): two coincident nodes for penalty joints, one when shared."""
+        return np.unique(self.joint(0, 0))
+
+    def apex_neighbours(self) -> np.ndarray:
+        """The nodes next to the apex along the two central rods (four nodes)."""
+        out = []
+        for family, node in zip(("u", "v"), self.joint(0, 0)):
+            k = self.rod_index(family, 0)
+            nodes = self.rod_nodes[k]
+            i = int(np.flatnonzero(nodes == node)[0])
+            out += [nodes[i - 1], nodes[i + 1]]
+        return np.array(out, dtype=np.int64)
+
+    @property
+    def n_dof(self) -> int:
+        return self.structure.n_dof
+
+    def positions(self, q: np.ndarray) -> np.ndarray:
+        """Node coordinates ``(n_nodes, 3)`` of a state."""
+        return np.asarray(q)[: 3 * self.structure.n_nodes].reshape(-1, 3)
+
+    def rod_polylines(self, q: np.ndarray) -> list[np.ndarray]:
+        """Every rod's centreline at state ``q`` (list of ``(N_k, 3)`` arrays)."""
+        x = self.positions(q)
+        return [x[idx] for idx in self.rod_nodes]
+
+
+def _stations(rod, h: float, kmax: int, dl: float) -> tuple[np.ndarray, np.ndarray]:
+    """Arc-length stations of a rod's nodes and the indices of its joint stations.
+
+    Joints sit at ``l h`` for ``l`` in ``-kmax..kmax`` when inside the rod; each
+    segment between consecutive stations (joints and ends) gets
+    ``max(1, round(length / dl))`` equal edges.
+    """
+    joints = [l * h for l in range(-kmax, kmax + 1) if rod.s_start + 1e-9 * h < l * h < rod.s_end - 1e-9 * h]
+    knots = np.array([rod.s_start, *joints, rod.s_end])
+    pieces, joint_at = [], []
+    count = 0
+    for a, b in zip(knots[:-1], knots[1:]):
+        m = max(1, int(round((b - a) / dl)))
+        pieces.append(np.linspace(a, b, m + 1)[:-1])
+        count += m
+        joint_at.append(count)
+    pieces.append(knots[-1:])
+    s = np.concatenate(pieces)
+    return s, np.array(joint_at[:-1], dtype=np.int64)
+
+
+def build_hemisphere(
+    n: int,
+    radius: float = PAPER["radius"],
+    voronoi_length: float = PAPER["voronoi_length"],
+    rod_radius: float = PAPER["rod_radius"],
+    youngs_modulus: float = PAPER["youngs_modulus"],
+    shear_modulus: float | None = None,
+    density: float = PAPER["density"],
+    joints: str = "penalty",
+    stiffness_ratio: float = 1.0e3,
+    configuration: str = "sphere",
+    bump: float = 0.05,
+) -> HemisphereModel:
+    """The rod network of the hemispherical gridshell with ``n`` rods per direction.
+
+    Parameters
+    ----------
+    n : int
+        Rods per direction (odd); ``2 n`` rods in all.
+    radius : float
+        Hemisphere radius R [m] (paper: 2R = 7.64 cm).
+    voronoi_length : float
+        Target edge length ``dl`` [m]; each inter-joint segment gets ``round(h / dl)`` edges.
+    rod_radius, youngs_modulus, density : float
+        Circular section ``r0``, ``E``, ``rho``.
+    shear_modulus : float, optional
+        Default ``E / 3`` (incompressible material, as in the paper).
+    joints : {"penalty", "shared"}
+        Two coincident nodes tied by the penalty spring of the paper (Eq. 3),
+        or one node shared by both rods.
+    stiffness_ratio : float
+        Penalty stiffness relative to the rods' axial stiffness at the joint.
+    configuration : {"sphere", "plane"}
+        Reference nodes on the net (for :func:`prestress_on_net`) or in the
+        flat footprint (for :func:`prestress_by_paths`).
+    bump : float
+        Only for ``"plane"``: height of the initial upward bump, as a
+        fraction of ``R``, that makes the flat grid buckle upwards.
+
+    Returns
+    -------
+    HemisphereModel
+        Rod ends pinned (translations fixed, end twist fixed). In the
+        ``"plane"`` configuration the end translations follow the paths in
+        ``model.paths`` (footprint at ``t = 0``, equator at ``t = 1``).
+    """
+    if joints not in ("penalty", "shared"):
+        raise ModelError(f"hemisphere: joints must be 'penalty' or 'shared', got {joints!r}")
+    if configuration not in ("sphere", "plane"):
+        raise ModelError(f"hemisphere: configuration must be 'sphere' or 'plane', got {configuration!r}")
+    for what, v in (("radius", radius), ("voronoi_length", voronoi_length), ("rod_radius", rod_radius),
+                    ("youngs_modulus", youngs_modulus)):
+        if not (np.isfinite(v) and v > 0):
+            raise ModelError(f"hemisphere: {what} must be positive and finite, got {v}")
+    net = chebyshev_hemisphere(radius, n)
+    h = net.spacing
+    if voronoi_length > h:
+        raise ModelError(f"hemisphere: voronoi_length {voronoi_length} exceeds the joint spacing {h:.4g}")
+    kmax = (net.n - 1) // 2
+    G = youngs_modulus / 3.0 if shear_modulus is None else shear_modulus
+    section = circular_section(youngs_modulus, G, rod_radius, density)
+
+    # nodes of every rod (u rods first, then v rods, as in the net)
+    stations, joint_idx, sphere_pts, plane_pts = [], [], [], []
+    for rod in net.rods:
+        s, jidx = _stations(rod, h, kmax, voronoi_length)
+        stations.append(s)
+        joint_idx.append(jidx)
+        sphere_pts.append(rod.position(s))
+        plane_pts.append(rod.planar(s, h))
+
+    # which station of which rod is joint (ku, kv)
+    rod_of = {(r.family, r.index): k for k, r in enumerate(net.rods)}
+    joint_keys, joint_station = [], []
+    for jt in net.joints:
+        ku, kv = rod_of[("u", jt.u_index)], rod_of[("v", jt.v_index)]
+        su = stations[ku][joint_idx[ku]]
+        sv = stations[kv][joint_idx[kv]]
+        iu = joint_idx[ku][int(np.argmin(np.abs(su - jt.v_index * h)))]
+        iv = joint_idx[kv][int(np.argmin(np.abs(sv - jt.u_index * h)))]
+        joint_keys.append((jt.u_index, jt.v_index))
+        joint_station.append((ku, iu, kv, iv))
+
+    # global numbering: every rod its own nodes; shared joints reuse the u rod's node
+    offsets = np.concatenate([[0], np.cumsum([len(s) for s in stations])])
+    local_to_global = [offsets[k] + np.arange(len(s)) for k, s in enumerate(stations)]
+    if joints == "shared":
+        drop = np.zeros(offsets[-1], dtype=bool)
+        for ku, iu, kv, iv in joint_station:
+            drop[local_to_global[kv][iv]] = True
+        new = np.cumsum(~drop) - 1
+        for k in range(len(stations)):
+            local_to_global[k] = new[offsets[k] + np.arange(len(stations[k]))]
+        for ku, iu, kv, iv in joint_station:
+            local_to_global[kv][iv] = local_to_global[ku][iu]
+        n_nodes = int((~drop).sum())
+    else:
+        n_nodes = int(offsets[-1])
+    sphere_nodes = np.zeros((n_nodes, 3))
+    plane_nodes = np.zeros((n_nodes, 3))
+    for k in range(len(stations)):
+        sphere_nodes[local_to_global[k]] = sphere_pts[k]
+        plane_nodes[local_to_global[k]] = plane_pts[k]
+    joint_nodes = np.array(
+        [(local_to_global[ku][iu], local_to_global[kv][iv]) for ku, iu, kv, iv in joint_station], dtype=np.int64
+    )
+
+    if configuration == "sphere":
+        ref = sphere_nodes.copy()
+    else:
+        ref = plane_nodes.copy()
+        rmax = max(float(np.linalg.norm(plane_nodes[:, :2], axis=1).max()), 1e-300)
+        rr = np.linalg.norm(plane_nodes[:, :2], axis=1) / rmax
+        ref[:, 2] = bump * radius * (1.0 - rr**2)
+    structure = Structure(ref)
+    network = RodNetwork(structure)
+    for k, rod in enumerate(net.rods):
+        idx = local_to_global[k]
+        first = sphere_nodes[idx[0]] / radius if configuration == "sphere" else np.array([0.0, 0.0, 1.0])
+        network.add_rod(
+            idx,
+            EA=section["EA"],
+            EI=section["EI"],
+            GJ=section["GJ"],
+            mass_per_length=section["mass_per_length"],
+            rotational_inertia=section["rotational_inertia"],
+            natural_curvature="straight",
+            rest_length=np.diff(stations[k]),
+            director=first,
+            name=f"{rod.family}{rod.index:+d}",
+        )
+    if joints == "penalty":
+        network.add_joints(joint_nodes, stiffness_ratio=stiffness_ratio)
+    end_nodes = np.array([[idx[0], idx[-1]] for idx in local_to_global], dtype=np.int64)
+    for k in range(len(net.rods)):
+        network.pin(k, "start", twist="fixed")
+        network.pin(k, "end", twist="fixed")
+    equator = np.array(net.equator_ends())
+    paths = []
+    if configuration == "plane":
+        start = plane_nodes[end_nodes.ravel()]
+        paths.append(NodePath.waypoints(structure, end_nodes.ravel(), [0.0, 1.0], [start, equator.reshape(-1, 3)]))
+    params = dict(
+        n=int(n), radius=float(radius), voronoi_length=float(voronoi_length), rod_radius=float(rod_radius),
+        youngs_modulus=float(youngs_modulus), shear_modulus=float(G), density=float(density), joints=joints,
+        stiffness_ratio=float(stiffness_ratio), configuration=configuration, bump=float(bump),
+    )
+    return HemisphereModel(
+        net=net, structure=structure, network=network, configuration=configuration,
+        rod_nodes=[np.asarray(i, dtype=np.int64) for i in local_to_global], rod_stations=stations,
+        joint_nodes=joint_nodes, joint_keys=joint_keys, end_nodes=end_nodes, sphere_nodes=sphere_nodes,
+        plane_nodes=plane_nodes, equator_ends=equator, EI=float(section["EI"]), params=params, paths=paths,
+    )
+
+
+@dataclass
+class PrestressResult:
+    """A pre-stressed hemisphere.
+
+    Attributes
+    ----------
+    q : ndarray
+        Equilibrium state (ends on the equator).
+    system : System
+        The system the state was found with (apex free).
+    success : bool
+    message : str
+    steps, iterations : int
+        Load steps and total Newton iterations.
+    wall_time_s : float
+    """
+
+    q: np.ndarray
+    system: System
+    success: bool
+    message: str
+    steps: int
+    iterations: int
+    wall_time_s: float
+
+
+def prestress_on_net(model: HemisphereModel, rtol: float = 1e-10) -> PrestressResult:
+    """Relax the rods placed on the net (cheaper route) by one static Newton solve."""
+    if model.configuration != "sphere":
+        raise ModelError("prestress_on_net needs a model built with configuration='sphere'")
+    t0 = time.perf_counter()
+    system = build_rod_system(model.network)
+    res = solve_static(system, rtol=rtol, max_iter=200)
+    if res.success:
+        system.accept(res.q)
+    return PrestressResult(res.q, system, res.success, res.message, 1, res.iterations, time.perf_counter() - t0)
+
+
+def prestress_by_paths(model: HemisphereModel, n_steps: int = 40, rtol: float = 1e-10) -> PrestressResult:
+    """The paper's route: rod ends moved along their paths from the footprint to the equator.
+
+    The flat grid (with its small bump) is compressed by the moving ends and
+    buckles upwards; the path is taken in ``n_steps`` (adaptive) load steps,
+    every converged state accepted so that the rod frames follow, and the
+    last state is the relaxed hemisphere.
+    """
+    if model.configuration != "plane" or not model.paths:
+        raise ModelError("prestress_by_paths needs a model built with configuration='plane'")
+    t0 = time.perf_counter()
+    system = build_rod_system(model.network)
+    res = solve_incremental(system, n_steps=n_steps, paths=model.paths, t_end=1.0, rtol=rtol, max_iter=60)
+    return PrestressResult(
+        res.q, system, res.success, res.message, res.n_steps, int(sum(res.iterations)), time.perf_counter() - t0
+    )
+
+
+def compare_shapes(model: HemisphereModel, qa: np.ndarray, qb: np.ndarray) -> dict[str, float]:
+    """How far two states of the same model are apart, and from the sphere (relative to R)."""
+    R = model.radius
+    xa, xb = model.positions(qa), model.positions(qb)
+    d = np.linalg.norm(xa - xb, axis=1)
+
+    def off_sphere(x):
+        return float(np.max(np.abs(np.linalg.norm(x, axis=1) - R)))
+
+    return {
+        "max_node_distance_over_R": float(d.max() / R),
+        "rms_node_distance_over_R": float(np.sqrt(np.mean(d**2)) / R),
+        "apex_height_a_over_R": float(xa[model.apex_nodes, 2].mean() / R),
+        "apex_height_b_over_R": float(xb[model.apex_nodes, 2].mean() / R),
+        "max_off_sphere_a_over_R": off_sphere(xa) / R,
+        "max_off_sphere_b_over_R": off_sphere(xb) / R,
+    }
