@@ -59,7 +59,9 @@ class RodTwisting(HingeEffect, Effect):
             return (self.k * (self.twist(q) - self.tau_bar) ** 2,)
         t0, t1, _, _, theta = self._geometry(q)
         h0, h1 = self.hinge_edges[:, 0], self.hinge_edges[:, 1]
-        beta, gb, Hb = reference_twist_change(t0, t1, self.frames.tangent[h0], self.frames.tangent[h1])
+        beta, gb, Hb = reference_twist_change(
+            t0, t1, self.frames.tangent[h0], self.frames.tangent[h1], hessian=order == 2
+        )
         dtau = theta[:, 1] - theta[:, 0] + self.frames.twist + beta - self.tau_bar
         n = len(t0)
         gtau = np.zeros((n, 8))

@@ -80,24 +80,24 @@ def hessian_of_projected_binormal(t0, t1, kb, chi, J, p):
 # -- layer 1: reference twist -------------------------------------------------------------
 
 
-def _atan2_derivatives(N, D, gN, gD, HN, HD):
-    """Value, gradient and Hessian of ``2 atan2(N, D)``."""
+def _atan2_derivatives(N, D, gN, gD, HN, HD, hessian=True):
+    """Value, gradient and (if asked) Hessian of ``2 atan2(N, D)``; ``HN``/``HD`` None mean zero."""
     R = N * N + D * D
     G = D[:, None] * gN - N[:, None] * gD
     g = 2.0 * G / R[:, None]
-    H = (
-        gN[:, :, None] * gD[:, None, :]
-        - gD[:, :, None] * gN[:, None, :]
-        + D[:, None, None] * HN
-        - N[:, None, None] * HD
-    ) / R[:, None, None]
+    if not hessian:
+        return 2.0 * np.arctan2(N, D), g, None
+    H = gN[:, :, None] * gD[:, None, :] - gD[:, :, None] * gN[:, None, :]
+    if HN is not None:
+        H += D[:, None, None] * HN - N[:, None, None] * HD
+    H /= R[:, None, None]
     gR = 2.0 * (N[:, None] * gN + D[:, None] * gD)
     H -= G[:, :, None] * gR[:, None, :] / (R * R)[:, None, None]
     H = H + np.swapaxes(H, 1, 2)  # 2 * symmetric part
     return 2.0 * np.arctan2(N, D), g, H
 
 
-def reference_twist_change(t0, t1, s0, s1):
+def reference_twist_change(t0, t1, s0, s1, hessian=True):
     """Change of the reference twist from the stored state, with derivatives over ``(t0, t1)``.
 
     ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
@@ -107,31 +107,35 @@ def reference_twist_change(t0, t1, s0, s1):
     -------
     beta : ndarray (n,)
     grad : ndarray (n, 6)
-    hess : ndarray (n, 6, 6)
+    hess : ndarray (n, 6, 6), or None when ``hessian`` is False
     """
     n = len(t0)
-    zero3 = np.zeros((n, 3))
     # triangle (s0, t0, t1)
     N1 = dot(s0, np.cross(t0, t1))
     D1 = 1.0 + dot(s0, t0) + dot(t0, t1) + dot(t1, s0)
     gN1 = np.concatenate([np.cross(t1, s0), np.cross(s0, t0)], axis=1)
     gD1 = np.concatenate([s0 + t1, t0 + s0], axis=1)
-    HN1 = np.zeros((n, 6, 6))
-    S0 = skew(s0)
-    HN1[:, :3, 3:] = -S0
-    HN1[:, 3:, :3] = S0
-    HD1 = np.zeros((n, 6, 6))
-    HD1[:, :3, 3:] = _I3
-    HD1[:, 3:, :3] = _I3
-    w1, g1, H1 = _atan2_derivatives(N1, D1, gN1, gD1, HN1, HD1)
-    # triangle (s0, t1, s1): linear numerator and denominator in t1
+    HN1 = HD1 = None
+    if hessian:
+        HN1 = np.zeros((n, 6, 6))
+        S0 = skew(s0)
+        HN1[:, :3, 3:] = -S0
+        HN1[:, 3:, :3] = S0
+        HD1 = np.zeros((n, 6, 6))
+        HD1[:, :3, 3:] = _I3
+        HD1[:, 3:, :3] = _I3
+    w1, g1, H1 = _atan2_derivatives(N1, D1, gN1, gD1, HN1, HD1, hessian)
+    # triangle (s0, t1, s1): numerator and denominator linear in t1 alone
     N2 = dot(s0, np.cross(t1, s1))
     D2 = 1.0 + dot(s0, t1) + dot(t1, s1) + dot(s1, s0)
-    gN2 = np.concatenate([zero3, np.cross(s1, s0)], axis=1)
-    gD2 = np.concatenate([zero3, s0 + s1], axis=1)
-    Z = np.zeros((n, 6, 6))
-    w2, g2, H2 = _atan2_derivatives(N2, D2, gN2, gD2, Z, Z)
-    return -(w1 + w2), -(g1 + g2), -(H1 + H2)
+    w2, g2, H2 = _atan2_derivatives(N2, D2, np.cross(s1, s0), s0 + s1, None, None, hessian)
+    g = -g1
+    g[:, 3:] -= g2
+    if not hessian:
+        return -(w1 + w2), g, None
+    H = -H1
+    H[:, 3:, 3:] -= H2
+    return -(w1 + w2), g, H
 
 
 # -- layer 1: material-frame term of the bending energy -----------------------------------
