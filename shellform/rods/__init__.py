@@ -1,5 +1,6 @@
 """Discrete elastic rods: kinematics, hinge derivatives, networks and boundary conditions."""
 
+from .grids import square_grid_polylines
 from .kinematics import ReferenceFrames
 from .network import (
     NodePath,
@@ -10,6 +11,7 @@ from .network import (
     resample_polyline,
     stack_polylines,
 )
+from .statics import IncrementalResult, SupportsAt, accept_state, solve_incremental
 
 __all__ = [
     "ReferenceFrames",
@@ -20,4 +22,9 @@ __all__ = [
     "circular_section",
     "resample_polyline",
     "stack_polylines",
+    "square_grid_polylines",
+    "IncrementalResult",
+    "SupportsAt",
+    "accept_state",
+    "solve_incremental",
 ]
