@@ -24,8 +24,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rods.hinge import HingeEffect, curvature_binormal_jacobian, hessian_of_projected_binormal, material_curvature_term
-from ..rods.kinematics import dot
+from ..rods.hinge import (
+    HingeEffect,
+    curvature_binormal_jacobian,
+    hessian_of_projected_binormal,
+    material_curvature_term,
+    material_curvature_value,
+)
+from ..rods.kinematics import curvature_binormal, dot
 from .base import Effect
 
 
@@ -68,12 +74,18 @@ class RodBending(HingeEffect, Effect):
 
     def _local(self, q, order):
         t0, t1, l0, l1, theta = self._geometry(q)
+        c = self.curved
+        if order == 0:
+            kb = curvature_binormal(t0, t1)
+            e = dot(kb, kb) + self._const
+            for j, te in enumerate((t0, t1)):
+                if c.size:
+                    frame = self._stored_frame(self.hinge_edges[c, j])
+                    e[c] -= material_curvature_value(kb[c], te[c], frame, self.omega_bar[c, j], theta[c, j])
+            return (self.k * e,)
         kb, chi, J = curvature_binormal_jacobian(t0, t1)
         n = len(t0)
         e = dot(kb, kb) + self._const
-        c = self.curved
-        if order == 0 and c.size == 0:
-            return (self.k * e,)
         g = np.zeros((n, 8))
         g[:, :6] = 2.0 * np.einsum("nk,nka->na", kb, J)
         H = None

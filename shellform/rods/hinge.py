@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..effects.base import element_pattern, scatter
 from .kinematics import dot, skew
 
 _I3 = np.eye(3)
@@ -189,6 +190,20 @@ def _transported_components(abc):
     return U, V, DU, DV, HU, HV
 
 
+def material_curvature_value(kb, t_edge, frame, omega_bar, theta):
+    """``omega_bar . omega^j`` alone (no derivatives), for energy evaluations."""
+    ct, st = np.cos(theta), np.sin(theta)
+    w1, w2 = omega_bar[:, 0], omega_bar[:, 1]
+    A = -w1 * st - w2 * ct
+    B = w1 * ct - w2 * st
+    a, b, c = np.einsum("nia,ni->na", frame, t_edge).T
+    d = 1.0 + c
+    U = np.stack([c + b * b / d, -a * b / d, -a], axis=1)
+    V = np.stack([-a * b / d, c + a * a / d, -b], axis=1)
+    p = np.einsum("nia,ni->na", frame, kb)
+    return dot(p, A[:, None] * U + B[:, None] * V)
+
+
 def material_curvature_term(t0, t1, kb, chi, J, edge, t_edge, frame, omega_bar, theta):
     """Value and derivatives over ``y = (t0, t1, theta0, theta1)`` of ``omega_bar . omega^j``.
 
@@ -314,8 +329,6 @@ class HingeEffect:
     """
 
     def _setup(self, frames, stencil):
-        from ..effects.base import element_pattern
-
         self.frames = frames
         self.stencil = np.asarray(stencil, dtype=np.int64)
         self.hinge_edges = frames.hinges
@@ -331,8 +344,6 @@ class HingeEffect:
         return float(np.sum(self._local(q, 0)[0]))
 
     def gradient(self, q):
-        from ..effects.base import scatter
-
         t0, t1, l0, l1, _ = self._geometry(q)
         _, g = self._local(q, 1)[:2]
         g11, _ = to_stencil(t0, t1, l0, l1, g)
