@@ -134,8 +134,8 @@ def greenhill(n):
 
 CASES = {
     "cantilever alpha=39.24 (tip error / L)": cantilever,
-    "Euler clamped-free (|P/P_E - 1|)": euler_clamped_free,
-    "Greenhill clamped (|M/M_c - 1|)": greenhill,
+    "Euler clamped-free (abs(P/P_E - 1))": euler_clamped_free,
+    "Greenhill clamped (abs(M/M_c - 1))": greenhill,
 }
 
 
