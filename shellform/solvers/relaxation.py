@@ -1,0 +1,878 @@
+"""Dynamic relaxation of hanging rope nets: the multi-body rope approach (MRA).
+
+Every node of the net is a mass; the ropes between the nodes pull only when
+taut. The net falls from its start configuration under its weight and comes to
+rest in the hanging (funicular) shape. At every free DOF the d'Alembert
+balance of Eqs. (6)-(8) of the MRA paper reads
+
+    m_i a_i + c_i v_i = -r_i(q),        r = f_int(q) - f_ext  (System.residual)
+
+with lumped nodal masses ``m_i`` (``Structure.nodal_mass()`` plus optional
+extra inertia) and viscous damping ``c_i = damping * m_i``. Rest is reached
+when every nodal velocity and every nodal acceleration is below a tolerance.
+
+Three schemes reach that rest state; ``scheme`` selects one:
+
+``"rk4"``
+    The paper's scheme: explicit classical Runge-Kutta time stepping of the
+    damped motion with a fixed step below the stability limit (from a
+    Gershgorin bound of the rope stiffnesses over the masses).
+``"kinetic"``
+    Explicit leapfrog with kinetic damping (Cundall/Barnes): no viscosity;
+    whenever the kinetic energy passes a peak the velocities are zeroed and
+    the state moved back to the peak. One force evaluation per step instead of
+    four, and no viscous drag slowing the fall.
+``"implicit"``
+    Pseudo-transient continuation: each step is a backward-Euler step of the
+    motion from rest, ``(K + M / dt^2) dq = -r``, with the global sparse
+    tangent ``System.tangent_free``. The total potential of a hanging net is
+    convex (a taut rope's energy is a convex function of the node positions,
+    a slack one is zero, the weight is linear), so a step is accepted when the
+    potential falls as the quadratic model predicts, and the pseudo time step
+    grows; when it grows without bound the step is Newton's method and
+    convergence is quadratic. The mass term keeps the matrix positive definite
+    while ropes are slack (a slack rope has no stiffness).
+
+All three stop on the same test (nodal velocity and acceleration below the
+tolerances) and reach the same equilibrium: the minimum of the potential.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ModelError
+from .linear import SingularMatrixError, factorize
+
+SCHEMES = ("rk4", "kinetic", "implicit")
+
+#: stability limit of classical RK4 on the imaginary axis is 2*sqrt(2); of leapfrog, 2
+_RK4_LIMIT = 2.8
+_LEAPFROG_LIMIT = 2.0
+
+
+@dataclass
+class RelaxationProgress:
+    """What a progress callback receives."""
+
+    scheme: str
+    iteration: int
+    time: float
+    max_velocity: float
+    max_acceleration: float
+    residual_norm: float
+    wall_time_s: float
+
+
+@dataclass
+class RelaxationResult:
+    """Outcome of a relaxation.
+
+    Attributes
+    ----------
+    q : ndarray
+        Final DOF vector (the last finite state when the run failed).
+    v : ndarray
+        Final velocity of every DOF (zero at constrained DOFs).
+    success : bool
+        Every nodal velocity and acceleration met its tolerance.
+    message : str
+        What happened, in words.
+    scheme : str
+        ``"rk4"``, ``"kinetic"`` or ``"implicit"``.
+    iterations : int
+        Time steps (explicit schemes) or accepted pseudo-time steps (implicit).
+    max_velocity, max_acceleration : float
+        Largest nodal speed [m/s] and nodal acceleration magnitude [m/s^2] at
+        the final state; the acceleration is the out-of-balance force over the
+        physical mass, ``|r_i| / m_i``.
+    residual_norm : float
+        Euclidean norm of the out-of-balance force at the free DOFs [N].
+    velocity_tol, acceleration_tol : float
+        The tolerances used.
+    time : float
+        Simulated time (explicit schemes) or accumulated pseudo time.
+    time_step : float
+        Time step of the explicit schemes; last pseudo time step (implicit).
+    wall_time_s : float
+    reactions : ndarray
+        Support reactions at every DOF (zero where free) at the final state.
+    residual_evaluations, factorizations, rejected_steps, linear_iterations : int
+        Work counters (``linear_iterations``: preconditioned CG iterations of
+        the implicit scheme).
+    history : dict of lists
+        ``iteration``, ``max_velocity``, ``max_acceleration``,
+        ``residual_norm`` sampled every ``progress_every`` iterations.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    success: bool
+    message: str
+    scheme: str
+    iterations: int
+    max_velocity: float
+    max_acceleration: float
+    residual_norm: float
+    velocity_tol: float
+    acceleration_tol: float
+    time: float
+    time_step: float
+    wall_time_s: float
+    reactions: np.ndarray
+    residual_evaluations: int = 0
+    factorizations: int = 0
+    rejected_steps: int = 0
+    linear_iterations: int = 0
+    history: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------
+# masses, scales and bounds
+# ---------------------------------------------------------------------------
+def nodal_masses(system, extra_mass=None) -> np.ndarray:
+    """Lumped nodal masses [kg]: the structure's masses plus ``extra_mass``.
+
+    ``extra_mass`` (scalar or one value per node) adds inertia only; the
+    weight is what the System's gravity effect was built with.
+    """
+    s = system.structure
+    m = s.nodal_mass().astype(float)
+    if extra_mass is not None:
+        extra = np.broadcast_to(np.asarray(extra_mass, dtype=float), m.shape)
+        if not np.all(np.isfinite(extra)) or np.any(extra < 0):
+            raise ModelError("relaxation: extra_mass must be finite and non-negative")
+        m = m + extra
+    return m
+
+
+def _free_node_mask(system) -> np.ndarray:
+    n = system.structure.n_nodes
+    free = np.zeros(3 * n, dtype=bool)
+    free[system.free] = True
+    return free.reshape(n, 3).any(axis=1)
+
+
+def node_stiffness_bound(system, q: np.ndarray) -> np.ndarray:
+    """Upper bound, per node, of the row sums of the tangent's 3x3 block norms.
+
+    For an axial member the tangent block has norm ``max(EA/L, |N|/l)``, which
+    is ``EA/L`` whenever the member is not compressed below half its rest
+    length; the bound therefore holds for every state a rope net passes
+    through, taut or slack. Other effects contribute the absolute row sums
+    of their Hessian at ``q`` (a state-dependent estimate).
+    By the block Gershgorin theorem, ``lambda_max(M^-1 K) <= max_i S_i / m_i``.
+    """
+    n = system.structure.n_nodes
+    S = np.zeros(n)
+    for e in system.effects:
+        if all(hasattr(e, a) for a in ("conn", "EA", "L")):
+            _, length = e._geometry(q)
+            k = (e.EA / e.L) * np.maximum(1.0, (e.L - length) / np.maximum(length, 1e-300))
+            S += 2.0 * (np.bincount(e.conn[:, 0], k, minlength=n) + np.bincount(e.conn[:, 1], k, minlength=n))
+        else:
+            rows, _ = e.hessian_pattern()
+            if len(rows) == 0:
+                continue
+            row_sum = np.bincount(rows, np.abs(e.hessian_values(q)), minlength=system.n_dof)
+            S += 2.0 * row_sum[: 3 * n].reshape(n, 3).max(axis=1)
+    return S
+
+
+def _nodal_max(system, x_free: np.ndarray) -> float:
+    """Largest Euclidean norm over nodes of a free-DOF vector."""
+    full = np.zeros(system.n_dof)
+    full[system.free] = x_free
+    n = system.structure.n_nodes
+    return float(np.sqrt(np.max(np.einsum("ij,ij->i", full.reshape(n, 3), full.reshape(n, 3)))))
+
+
+@dataclass
+class _Setup:
+    q: np.ndarray
+    m_node: np.ndarray
+    m: np.ndarray  # per free DOF
+    g_ref: float
+    L_ref: float
+    v_tol: float
+    a_tol: float
+    damping: float
+    a_tol_asked: float
+
+
+def _setup(system, q0, lam, mu, extra_mass, rtol, v_tol, a_tol, damping) -> _Setup:
+    s = system.structure
+    if system.n_dof != 3 * s.n_nodes:
+        raise ModelError(
+            f"relaxation: the structure has {s.n_twist} twist DOFs; the rope-net relaxation "
+            "handles translations only"
+        )
+    q = system.state(mu=mu, base=q0)
+    if not np.all(np.isfinite(q)):
+        bad = int(np.flatnonzero(~np.isfinite(q))[0])
+        raise ModelError(f"relaxation: the start state has a non-finite value at DOF {bad} (node {bad // 3})")
+    m_node = nodal_masses(system, extra_mass)
+    zero = np.flatnonzero(_free_node_mask(system) & (m_node <= 0))
+    if zero.size:
+        raise ModelError(
+            f"relaxation: free node {int(zero[0])} has no mass ({zero.size} such nodes); every free node of a "
+            "hanging net must be a mass: give the ropes a mass per length, add point masses, or pass extra_mass"
+        )
+    m = np.repeat(m_node, 3)[system.free]
+    f = system.external_force(lam).reshape(-1, 3)
+    fn = np.linalg.norm(f, axis=1)
+    loaded = fn > 0
+    g_ref = float(np.max(fn[loaded] / m_node[loaded])) if np.any(loaded & (m_node > 0)) else 9.81
+    ext = np.ptp(q.reshape(-1, 3), axis=0)
+    L_ref = float(ext.max()) if ext.max() > 0 else 1.0
+    a_tol = rtol * g_ref if a_tol is None else float(a_tol)
+    v_tol = rtol * np.sqrt(g_ref * L_ref) if v_tol is None else float(v_tol)
+    if not (a_tol > 0 and v_tol > 0):
+        raise ModelError(f"relaxation: tolerances must be positive, got velocity {v_tol}, acceleration {a_tol}")
+    # Forces of very stiff ropes carry a round-off error of about eps * (EA/L) * |x|;
+    # an acceleration tolerance below that level can never be met.
+    S = node_stiffness_bound(system, q)
+    fn_mask = _free_node_mask(system)
+    a_floor = 0.0
+    if np.any(fn_mask):
+        # a rope's extension l - L is computed from coordinates of size |x| (error
+        # eps |x|); S_i sums 2 EA/L over the node's ropes
+        x_max = max(float(np.max(np.abs(q))), L_ref)
+        a_floor = float(0.5 * np.finfo(float).eps * x_max * np.max(S[fn_mask] / m_node[fn_mask]))
+    a_tol_asked = a_tol
+    a_tol = max(a_tol, a_floor)
+    # critical damping of the slowest, pendulum-like mode of a net of size L_ref
+    damping = 2.0 * np.sqrt(g_ref / L_ref) if damping is None else float(damping)
+    if damping < 0 or not np.isfinite(damping):
+        raise ModelError(f"relaxation: damping must be finite and non-negative, got {damping}")
+    return _Setup(q, m_node, m, g_ref, L_ref, v_tol, a_tol, damping, a_tol_asked)
+
+
+def stable_time_step(system, q=None, extra_mass=None, scheme: str = "rk4", damping: float = 0.0) -> float:
+    """Explicit time step allowed by the stiffness bound, with a 10 % margin.
+
+    ``omega_max^2 <= max_i S_i / m_i`` (:func:`node_stiffness_bound`); the step is
+    ``0.9 * 2.8 / omega`` for RK4 (whose stability region reaches 2.83 on the
+    imaginary axis, with ``omega`` raised to ``hypot(omega, damping)`` for the
+    damped eigenvalues) and ``0.9 * 2 / omega`` for leapfrog.
+    """
+    q = system.q_ref if q is None else q
+    return _bound_step(system, q, nodal_masses(system, extra_mass), scheme, damping)
+
+
+def _bound_step(system, q, m_node, scheme, damping):
+    S = node_stiffness_bound(system, q)
+    free_nodes = _free_node_mask(system) & (S > 0)
+    if not np.any(free_nodes):
+        raise ModelError("relaxation: no free node is attached to a member; nothing holds the net")
+    omega = float(np.sqrt(np.max(S[free_nodes] / np.maximum(m_node[free_nodes], 1e-300))))
+    if scheme == "rk4":
+        return 0.9 * _RK4_LIMIT / float(np.hypot(omega, damping))
+    return 0.9 * _LEAPFROG_LIMIT / omega
+
+
+# ---------------------------------------------------------------------------
+# linear solves for the implicit scheme
+# ---------------------------------------------------------------------------
+class _SPDSolve:
+    """Solves with ``A = K + sigma M`` (symmetric positive definite by construction).
+
+    A factorisation is kept from step to step: the next system is first solved
+    by conjugate gradients preconditioned with the old factor (a few cheap
+    iterations while the tangent changes little), and refactorised only when
+    that does not converge within ``cg_max`` iterations.
+
+    ``"ldl"`` keeps one QDLDL object and refactorises numerically on the same
+    pattern (the ordering and symbolic analysis are done once). ``"amg"`` uses
+    smoothed-aggregation multigrid with the three nodal translations as
+    near-null space as the preconditioner. Other methods go to
+    :func:`shellform.solvers.linear.factorize`.
+    """
+
+    def __init__(self, method: str, n: int, reuse: bool = True, cg_max: int = 10):
+        if method == "auto":
+            method = "ldl" if n <= 300_000 else "amg"
+        self.method = method
+        self.reuse = reuse
+        self.cg_max = cg_max
+        self._qd = None
+        self._factor = None
+        self._ml = None
+        self._ready = False
+        self.factorizations = 0
+        self.cg_iterations = 0
+
+    def _factorize(self, A: sp.csr_matrix) -> None:
+        self._ready = False
+        if self.method == "ldl":
+            import qdldl
+
+            upper = sp.triu(A, format="csc")
+            try:
+                if self._qd is None:
+                    self._qd = qdldl.Solver(upper)
+                else:
+                    self._qd.update(upper)
+            except (RuntimeError, ValueError) as exc:
+                self._qd = None
+                raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
+        elif self.method == "amg":
+            import pyamg
+
+            n = A.shape[0]
+            B = np.kron(np.ones((n // 3, 1)), np.eye(3)) if n % 3 == 0 else None
+            M = A.tobsr(blocksize=(3, 3)) if n % 3 == 0 else A
+            self._ml = pyamg.smoothed_aggregation_solver(M, B=B, symmetry="symmetric", max_coarse=1000)
+            self._vcycle = self._ml.aspreconditioner(cycle="V")
+        else:
+            self._factor = factorize(A, self.method)
+        self.factorizations += 1
+        self._ready = True
+
+    def _precondition(self, b: np.ndarray) -> np.ndarray:
+        if self.method == "ldl":
+            return self._qd.solve(b)
+        if self.method == "amg":
+            return self._vcycle @ b
+        return self._factor.solve(b)
+
+    def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray:
+        """Solve ``A x = b`` to relative residual ``rtol`` (or exactly after a refactorisation)."""
+        if self.reuse and self._ready:
+            x, ok, its = _pcg(A, b, self._precondition, rtol, self.cg_max)
+            self.cg_iterations += its
+            if ok:
+                return x
+        self._factorize(A)
+        if self.method == "amg":
+            x, ok, its = _pcg(A, b, self._precondition, min(rtol, 1e-8), 400)
+            self.cg_iterations += its
+            if not ok:
+                raise SingularMatrixError("AMG-preconditioned CG did not converge")
+        else:
+            x = self._precondition(b)
+            x = x + self._precondition(b - A @ x)  # one step of iterative refinement
+        if not np.all(np.isfinite(x)):
+            self._ready = False
+            raise SingularMatrixError("linear solve produced non-finite values")
+        return x
+
+
+def _pcg(A, b, prec, rtol, maxiter):
+    """Preconditioned conjugate gradients from zero; returns ``(x, converged, iterations)``.
+
+    Every iterate is a descent direction of the quadratic model, so even an
+    unconverged result could be used; we still ask for ``rtol``.
+    """
+    x = np.zeros_like(b)
+    r = b.copy()
+    nb = float(np.linalg.norm(b))
+    if nb == 0.0:
+        return x, True, 0
+    z = prec(r)
+    p = z.copy()
+    rz = float(r @ z)
+    for k in range(1, maxiter + 1):
+        Ap = A @ p
+        pAp = float(p @ Ap)
+        if not (pAp > 0 and np.isfinite(pAp)):
+            return x, False, k
+        a = rz / pAp
+        x += a * p
+        r -= a * Ap
+        if float(np.linalg.norm(r)) <= rtol * nb:
+            return x, True, k
+        z = prec(r)
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, False, maxiter
+
+
+# ---------------------------------------------------------------------------
+# the driver
+# ---------------------------------------------------------------------------
+def relax(
+    system,
+    q0: np.ndarray | None = None,
+    *,
+    scheme: str = "implicit",
+    lam: float = 1.0,
+    mu: float = 0.0,
+    extra_mass=None,
+    damping: float | None = None,
+    rtol: float = 1e-6,
+    velocity_tol: float | None = None,
+    acceleration_tol: float | None = None,
+    dt: float | None = None,
+    max_iterations: int | None = None,
+    max_wall_time: float | None = None,
+    linear_solver: str = "auto",
+    stiffness_continuation: bool = True,
+    callback: Callable[[RelaxationProgress], bool | None] | None = None,
+    progress_every: int | None = None,
+) -> RelaxationResult:
+    """Let a net of masses and ropes fall to rest in its hanging shape.
+
+    Parameters
+    ----------
+    system : System
+        Ropes (and bars) with their loads; self-weight enters through the
+        System's gravity effect. Constrained DOFs are suspension points.
+    q0 : ndarray, optional
+        Start state (all DOFs); the reference configuration by default (the
+        flat planform). Constrained DOFs are set to their prescribed values.
+    scheme : {"implicit", "rk4", "kinetic"}
+        See the module docstring.
+    lam, mu : float
+        Load factor and prescribed-displacement parameter.
+    extra_mass : float or array_like, optional
+        Extra nodal inertia [kg] added to ``Structure.nodal_mass()``.
+    damping : float, optional
+        Viscous damping per unit mass ``c_i / m_i`` [1/s] (``rk4``; the implicit
+        scheme adds it to the pseudo-time term). Default
+        ``2 sqrt(g / L)``: critical damping of a pendulum of the net's size.
+    rtol : float
+        Default tolerances: acceleration ``rtol * g`` and velocity
+        ``rtol * sqrt(g L)``, with ``g`` the largest load-over-mass of a node
+        and ``L`` the size of the net.
+    velocity_tol, acceleration_tol : float, optional
+        Explicit tolerances [m/s], [m/s^2]; every node must meet both.
+    dt : float, optional
+        Time step of the explicit schemes (default: 90 % of the stability
+        bound) or the first pseudo time step of the implicit one.
+    max_iterations : int, optional
+        Give up after this many steps (default 2,000,000 explicit, 500 implicit).
+    max_wall_time : float, optional
+        Give up after this many seconds.
+    linear_solver : {"auto", "ldl", "amg", "direct", "lu"}
+        Linear solver of the implicit scheme.
+    stiffness_continuation : bool
+        Implicit scheme only: reach the equilibrium through a sequence of
+        softer nets (EA scaled by 10^-k, each stage started from the previous
+        one). Nearly inextensible ropes make the potential so stiff that a
+        quadratic model is accurate only for tiny steps while the net is far
+        from its shape; soft ropes let the early steps be large. The last
+        stage has the true EA, so the equilibrium is the same.
+    callback : callable, optional
+        Called with a :class:`RelaxationProgress` every ``progress_every``
+        iterations; returning True stops the run (reported as not converged).
+    progress_every : int, optional
+        Default 1 for the implicit scheme, 2000 for the explicit ones.
+
+    Returns
+    -------
+    RelaxationResult
+    """
+    if scheme not in SCHEMES:
+        raise ModelError(f"relaxation: unknown scheme {scheme!r}; expected one of {SCHEMES}")
+    t0 = time.perf_counter()
+    st = _setup(system, q0, lam, mu, extra_mass, rtol, velocity_tol, acceleration_tol, damping)
+    if progress_every is None:
+        progress_every = 1 if scheme == "implicit" else 2000
+    if max_iterations is None:
+        max_iterations = 500 if scheme == "implicit" else 2_000_000
+    args = (system, st, lam, dt, int(max_iterations), max_wall_time, linear_solver, callback,
+            max(int(progress_every), 1), t0)
+    if scheme == "implicit":
+        return _run_implicit(*args, continuation=stiffness_continuation)
+    return {"rk4": _run_rk4, "kinetic": _run_kinetic}[scheme](*args)
+
+
+class _Monitor:
+    """Shared bookkeeping: tolerances, history, callback, finishing."""
+
+    def __init__(self, system, st, scheme, lam, callback, every, t0, max_wall_time):
+        self.system, self.st, self.scheme, self.lam = system, st, scheme, lam
+        self.callback, self.every, self.t0, self.max_wall_time = callback, every, t0, max_wall_time
+        self.history = {"iteration": [], "max_velocity": [], "max_acceleration": [], "residual_norm": []}
+        self.n_res = 0
+        self.n_fact = 0
+        self.n_cg = 0
+        self.rejected = 0
+
+    def measure(self, v_free, r_free, a_free=None):
+        """Nodal maxima; the acceleration is ``-r / m`` unless given."""
+        vmax = _nodal_max(self.system, v_free)
+        amax = _nodal_max(self.system, (-r_free / self.st.m) if a_free is None else a_free)
+        return vmax, amax, float(np.linalg.norm(r_free))
+
+    def converged(self, vmax, amax) -> bool:
+        return vmax <= self.st.v_tol and amax <= self.st.a_tol
+
+    def tick(self, it, t, vmax, amax, rnorm) -> str | None:
+        """Record, call back; return a reason to stop, if any."""
+        if it % self.every == 0:
+            for k, val in zip(self.history, (it, vmax, amax, rnorm)):
+                self.history[k].append(val)
+            if self.callback is not None:
+                info = RelaxationProgress(self.scheme, it, t, vmax, amax, rnorm, time.perf_counter() - self.t0)
+                if self.callback(info):
+                    return f"stopped by the progress callback after {it} iterations"
+        if self.max_wall_time is not None and time.perf_counter() - self.t0 > self.max_wall_time:
+            return f"not converged within the wall-time limit of {self.max_wall_time:g} s ({it} iterations)"
+        return None
+
+    def finish(self, q_free, v_free, success, message, it, t, h, vmax, amax, rnorm):
+        q = self._q_template.copy()
+        q[self.system.free] = q_free
+        v = np.zeros(self.system.n_dof)
+        v[self.system.free] = v_free
+        return RelaxationResult(
+            q=q, v=v, success=success, message=message, scheme=self.scheme, iterations=it,
+            max_velocity=vmax, max_acceleration=amax, residual_norm=rnorm,
+            velocity_tol=self.st.v_tol, acceleration_tol=self.st.a_tol, time=t, time_step=h,
+            wall_time_s=time.perf_counter() - self.t0, reactions=self.system.reactions(q, self.lam),
+            residual_evaluations=self.n_res, factorizations=self.n_fact, rejected_steps=self.rejected,
+            linear_iterations=self.n_cg,
+            history=self.history,
+        )
+
+
+def _converged_message(mon, it, vmax, amax):
+    msg = (f"at rest after {it} iterations: max nodal velocity {vmax:.3e} <= {mon.st.v_tol:.3e} m/s, "
+           f"max nodal acceleration {amax:.3e} <= {mon.st.a_tol:.3e} m/s^2")
+    if mon.st.a_tol > mon.st.a_tol_asked:
+        msg += (f" (acceleration tolerance raised from {mon.st.a_tol_asked:.3e} to the round-off level of "
+                "the rope forces)")
+    return msg
+
+
+def _not_finite_message(it, h):
+    return (f"diverged at iteration {it}: the state is no longer finite (time step {h:.3e} s); "
+            "reduce the time step")
+
+
+def _explicit_step_size(system, st, dt, scheme):
+    if dt is not None:
+        if not (dt > 0 and np.isfinite(dt)):
+            raise ModelError(f"relaxation: time step must be positive and finite, got {dt}")
+        return float(dt)
+    return _bound_step(system, st.q, st.m_node, scheme, st.damping if scheme == "rk4" else 0.0)
+
+
+def _run_rk4(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0):
+    mon = _Monitor(system, st, "rk4", lam, callback, every, t0, max_wall)
+    mon._q_template = st.q.copy()
+    h = _explicit_step_size(system, st, dt, "rk4")
+    free = system.free
+    q = st.q.copy()
+    m, c = st.m, st.damping
+    L_big = 1e6 * st.L_ref
+
+    def acc(qf, vf):
+        q[free] = qf
+        r = system.residual(q, lam)[free]
+        mon.n_res += 1
+        return (-r - c * m * vf) / m, r
+
+    qf = st.q[free].copy()
+    vf = np.zeros_like(qf)
+    qf_prev, vf_prev = qf, vf
+    t = 0.0
+    vmax = amax = rnorm = np.nan
+    for it in range(max_it + 1):
+        a1, r = acc(qf, vf)
+        vmax, amax, rnorm = mon.measure(vf, r, a1)
+        if not (np.isfinite(amax) and np.isfinite(vmax)) or np.max(np.abs(qf)) > L_big:
+            return mon.finish(qf_prev, vf_prev, False, _not_finite_message(it, h), it, t, h, np.nan, np.nan, np.nan)
+        if mon.converged(vmax, amax):
+            return mon.finish(qf, vf, True, _converged_message(mon, it, vmax, amax), it, t, h, vmax, amax, rnorm)
+        if it == max_it:
+            break
+        stop = mon.tick(it, t, vmax, amax, rnorm)
+        if stop:
+            return mon.finish(qf, vf, False, stop, it, t, h, vmax, amax, rnorm)
+        qf_prev, vf_prev = qf, vf
+        v2 = vf + 0.5 * h * a1
+        a2, _ = acc(qf + 0.5 * h * vf, v2)
+        v3 = vf + 0.5 * h * a2
+        a3, _ = acc(qf + 0.5 * h * v2, v3)
+        v4 = vf + h * a3
+        a4, _ = acc(qf + h * v3, v4)
+        qf = qf + (h / 6.0) * (vf + 2.0 * v2 + 2.0 * v3 + v4)
+        vf = vf + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        t += h
+    return mon.finish(qf, vf, False, _limit_message(mon, max_it, vmax, amax), max_it, t, h, vmax, amax, rnorm)
+
+
+def _limit_message(mon, it, vmax, amax):
+    return (f"not converged in {it} iterations: max nodal velocity {vmax:.3e} (tolerance {mon.st.v_tol:.3e}), "
+            f"max nodal acceleration {amax:.3e} (tolerance {mon.st.a_tol:.3e})")
+
+
+def _run_kinetic(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0):
+    mon = _Monitor(system, st, "kinetic", lam, callback, every, t0, max_wall)
+    mon._q_template = st.q.copy()
+    h = _explicit_step_size(system, st, dt, "kinetic")
+    free = system.free
+    q = st.q.copy()
+    m = st.m
+    L_big = 1e6 * st.L_ref
+
+    def force(qf):
+        q[free] = qf
+        mon.n_res += 1
+        return system.residual(q, lam)[free]
+
+    qf = st.q[free].copy()
+    v = np.zeros_like(qf)  # velocity at the half step t - h/2
+    qf_prev = qf
+    r = force(qf)
+    ke_prev = 0.0
+    t = 0.0
+    vmax = amax = rnorm = np.nan
+    for it in range(max_it + 1):
+        a = -r / m
+        vmax, amax, rnorm = mon.measure(v, r, a)
+        if not (np.isfinite(amax) and np.isfinite(vmax)) or np.max(np.abs(qf)) > L_big:
+            return mon.finish(qf_prev, np.zeros_like(qf), False, _not_finite_message(it, h), it, t, h,
+                              np.nan, np.nan, np.nan)
+        if mon.converged(vmax, amax):
+            return mon.finish(qf, v, True, _converged_message(mon, it, vmax, amax), it, t, h, vmax, amax, rnorm)
+        if it == max_it:
+            break
+        stop = mon.tick(it, t, vmax, amax, rnorm)
+        if stop:
+            return mon.finish(qf, v, False, stop, it, t, h, vmax, amax, rnorm)
+        qf_prev = qf
+        v_new = v + h * a
+        q_new = qf + h * v_new
+        ke = 0.5 * float(np.dot(m * v_new, v_new))
+        if ke < ke_prev:
+            # the kinetic energy peaked during the last steps: go back to the peak
+            # (quadratic interpolation of the trajectory, Barnes' correction) and
+            # restart from rest there
+            qf = q_new - 1.5 * h * v_new + 0.5 * h * h * a
+            v = np.zeros_like(qf)
+            ke_prev = 0.0
+        else:
+            qf, v = q_new, v_new
+            ke_prev = ke
+        r = force(qf)
+        t += h
+    return mon.finish(qf, v, False, _limit_message(mon, max_it, vmax, amax), max_it, t, h, vmax, amax, rnorm)
+
+
+def _axial_effects(system):
+    return [e for e in system.effects if all(hasattr(e, a) for a in ("conn", "EA", "L"))]
+
+
+def _with_stiffness_scale(system, scale: float):
+    """A shallow copy of ``system`` whose axial members have ``scale`` times their EA.
+
+    The copy shares the sparsity patterns (they do not depend on EA) and leaves
+    the caller's System untouched.
+    """
+    view = copy.copy(system)
+    effects = []
+    for e in system.effects:
+        if all(hasattr(e, a) for a in ("conn", "EA", "L")):
+            e = copy.copy(e)
+            e.EA = e.EA * scale
+        effects.append(e)
+    view.effects = tuple(effects)
+    return view
+
+
+def _continuation_scales(system, st, lam) -> list[float]:
+    """Stiffness scales of the EA continuation, ending at 1.
+
+    The first stage makes the ropes soft enough to stretch about 10 % under an
+    estimate of the rope tension (the largest nodal load times the number of
+    ropes across the net, over four); each later stage is ten times stiffer.
+    """
+    axial = _axial_effects(system)
+    if not axial:
+        return [1.0]
+    EA = np.concatenate([e.EA for e in axial])
+    L = np.concatenate([e.L for e in axial])
+    f = np.linalg.norm(system.external_force(lam).reshape(-1, 3), axis=1)
+    tension = float(f.max()) * max(st.L_ref / float(np.mean(L)), 1.0) / 4.0
+    if tension <= 0:
+        return [1.0]
+    s0 = 10.0 * tension / float(np.median(EA))
+    if s0 >= 0.1:
+        return [1.0]
+    scales = []
+    while s0 < 1.0:
+        scales.append(s0)
+        s0 *= 10.0
+    return scales + [1.0]
+
+
+def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True):
+    mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
+    mon._q_template = st.q.copy()
+    free = system.free
+    solver = _SPDSolve(linear_solver, free.size)
+    scales = _continuation_scales(system, st, lam) if continuation else [1.0]
+    # the first pseudo step is a free fall of about 1 % of the net's size
+    h = float(dt) if dt is not None else np.sqrt(0.02 * st.L_ref / st.g_ref)
+    q = st.q.copy()
+    total = {"it": 0, "t": 0.0}
+    diag_pos = [None]
+    for k, scale in enumerate(scales):
+        last = k == len(scales) - 1
+        view = system if scale == 1.0 else _with_stiffness_scale(system, scale)
+        # intermediate stages only need to land near their equilibrium
+        a_tol = st.a_tol if last else max(st.a_tol, 0.1 * st.g_ref)
+        v_tol = st.v_tol if last else np.inf
+        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos)
+        q, h, v, success, message, vmax, amax, rnorm = out
+        mon.n_fact = solver.factorizations
+        mon.n_cg = solver.cg_iterations
+        if not success or last:
+            if not last:
+                message = f"stiffness stage {k + 1} of {len(scales)} (EA x {scale:.1e}): {message}"
+            return mon.finish(q[free], v, success, message, total["it"], total["t"], h, vmax, amax, rnorm)
+        # a stiffer net moves little from here: restart with a moderate pseudo step
+        h = min(h, np.sqrt(st.L_ref / st.g_ref))
+
+
+def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
+    """Pseudo-transient continuation on one System; returns the final state and status."""
+    st = mon.st
+    free = system.free
+    m = st.m
+    h_max = 1e12 * np.sqrt(st.L_ref / st.g_ref)
+
+    def evaluate(qq):
+        mon.n_res += 1
+        return system.energy(qq, lam), system.residual(qq, lam)[free]
+
+    E, r = evaluate(q)
+    v = np.zeros(free.size)
+    K = None
+    vmax, amax, rnorm = mon.measure(v, r)
+    f_scale = max(float(np.linalg.norm(system.external_force(lam)[free])), rnorm, 1e-300)
+    tries = 0
+    while True:
+        if not (np.isfinite(E) and np.isfinite(rnorm)):
+            return q, h, v, False, f"the potential is not finite at iteration {total['it']}", np.nan, np.nan, np.nan
+        if vmax <= v_tol and amax <= a_tol:
+            return q, h, v, True, _converged_message(mon, total["it"], vmax, amax), vmax, amax, rnorm
+        if total["it"] >= max_it:
+            return q, h, v, False, _limit_message(mon, total["it"], vmax, amax), vmax, amax, rnorm
+        if tries > 60:
+            return (q, h, v, False, f"iteration {total['it']}: no pseudo time step reduced the potential "
+                    f"(last step {h:.3e} s); the net may be a mechanism", vmax, amax, rnorm)
+        if K is None:
+            K = system.tangent_free(q)
+            K.sort_indices()
+            if diag_pos[0] is None:
+                diag_pos[0] = _diagonal_positions(K)
+        # backward-Euler step from rest with viscous damping: (M/h^2 + C/h + K) dq = -r
+        A = K.copy()
+        A.data[diag_pos[0]] += (1.0 / h**2 + st.damping / h) * m
+        # inexact steps far from equilibrium, accurate ones close to it
+        eta = min(1e-2, max(1e-10, float(np.sqrt(rnorm / f_scale))))
+        try:
+            p = solver.solve(A, -r, eta)
+        except SingularMatrixError:
+            mon.rejected += 1
+            h *= 0.25
+            tries += 1
+            continue
+        slope = float(r @ p)
+        if not slope < 0:
+            mon.rejected += 1
+            h *= 0.25
+            tries += 1
+            continue
+        pred = slope + 0.5 * float(p @ (K @ p))
+        # the potential is trusted down to round-off in E; below that, the residual decides
+        tiny = abs(pred) <= 1e-11 * max(abs(E), 1e-300)
+        alpha, E_try, r_try = _line_search(evaluate, q, free, p, E, slope, rnorm, tiny)
+        if alpha == 0.0:
+            mon.rejected += 1
+            h *= 0.25
+            tries += 1
+            continue
+        tries = 0
+        dE = E_try - E
+        rho = dE / pred if (pred < 0 and alpha == 1.0) else 0.5
+        v = alpha * p / h
+        q = q.copy()
+        q[free] += alpha * p
+        E, r = E_try, r_try
+        K = None
+        total["t"] += h
+        total["it"] += 1
+        if alpha == 1.0 and (rho > 0.75 or tiny):
+            h = min(4.0 * h, h_max)
+        elif alpha < 0.1:
+            h *= 0.25
+        elif alpha < 0.5 or rho < 0.25:
+            h *= 0.5
+        vmax, amax, rnorm = mon.measure(v, r)
+        stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm)
+        if stop:
+            return q, h, v, False, stop, vmax, amax, rnorm
+
+
+def _line_search(evaluate, q, free, p, E0, slope, rnorm0, tiny, max_eval=12):
+    """Step length along ``p`` for the convex potential ``phi(a) = Pi(q + a p)``.
+
+    The full step is taken when it lowers the potential enough (Armijo) or, at
+    round-off level (``tiny``), lowers the residual. Otherwise the minimiser of
+    ``phi`` on ``(0, 1)`` is located by regula falsi on ``phi'(a) = r(q + a p) . p``
+    (increasing, since ``phi`` is convex). Returns ``(alpha, E, r)``; alpha 0
+    means no decrease was found.
+    """
+    def at(a):
+        qq = q.copy()
+        qq[free] += a * p
+        E, r = evaluate(qq)
+        return E, r, float(r @ p)
+
+    E1, r1, d1 = at(1.0)
+    if np.isfinite(E1) and np.all(np.isfinite(r1)):
+        if tiny:
+            if float(np.linalg.norm(r1)) < rnorm0:
+                return 1.0, E1, r1
+        elif E1 - E0 <= 1e-4 * slope or (d1 <= 0.0 and E1 < E0):
+            return 1.0, E1, r1
+    if tiny:
+        return 0.0, E0, None
+    # bracket [lo, hi] with phi'(lo) < 0 < phi'(hi)
+    lo, dlo = 0.0, slope
+    hi, dhi = 1.0, d1 if np.isfinite(d1) else np.inf
+    best = (0.0, E0, None)
+    for _ in range(max_eval):
+        if np.isfinite(dhi):
+            a = hi - dhi * (hi - lo) / (dhi - dlo)
+            a = min(max(a, lo + 0.05 * (hi - lo)), hi - 0.05 * (hi - lo))
+        else:
+            a = 0.5 * (lo + hi)
+        Ea, ra, da = at(a)
+        if not (np.isfinite(Ea) and np.isfinite(da)):
+            hi, dhi = a, np.inf
+            continue
+        if Ea < best[1]:
+            best = (a, Ea, ra)
+        if abs(da) <= 0.1 * abs(slope) and Ea < E0:
+            return a, Ea, ra
+        if da < 0:
+            lo, dlo = a, da
+        else:
+            hi, dhi = a, da
+    if best[0] > 0 and best[1] <= E0 + 1e-4 * best[0] * slope:
+        return best
+    return 0.0, E0, None
+
+
+def _diagonal_positions(A: sp.csr_matrix) -> np.ndarray:
+    """Index into ``A.data`` of every diagonal entry (all present by construction)."""
+    n = A.shape[0]
+    rows = np.repeat(np.arange(n), np.diff(A.indptr))
+    pos = np.flatnonzero(rows == A.indices)
+    if pos.size != n:
+        raise ModelError("relaxation: the tangent pattern lacks diagonal entries")
+    return pos
