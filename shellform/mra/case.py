@@ -1,0 +1,281 @@
+"""One MRA form-finding case from a parameter dictionary, start to finish.
+
+:func:`run_mra_case` builds the grid, the hanging net and its start state,
+form-finds, inverts, computes the length statistics (and optionally runs the
+length control and the flat-versus-surface start comparison), writes the
+hanging and inverted meshes (VTU) and ``summary.json``, and returns the
+summary. The parameter layout (the ``[mra]`` scene tables) is documented in
+``validation/mra/README.md``; every key has a default except the geometry
+and the supports.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from ..errors import SceneError
+from ..geometry.bspline import BSplineSurface, dish, height_field
+from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
+from ..io.mesh import write_mesh
+from ..io.summary import write_json
+from .formfind import FormFindingResult, HypostaticWarning, form_find
+from .inversion import InvertedShell, invert
+from .lengths import control_lengths, length_statistics
+from .net import HangingNet, hanging_net
+from .start import fit_height_field, surface_start
+
+DEFAULTS = {
+    "name": "mra",
+    "geometry": {},
+    "supports": {},
+    "ropes": {"slack": 0.0, "EA": None, "stiffness_ratio": 1.0e4, "mass_per_length": 1.0},
+    "masses": {"node_mass": 0.0},
+    "loads": {"gravity": [0.0, 0.0, -9.81]},
+    "solver": {"scheme": "implicit", "rtol": 1e-6, "velocity_tol": None, "acceleration_tol": None,
+               "max_iterations": None, "max_wall_time": None, "damping": None, "linear_solver": "auto",
+               "dt": None},
+    "start": {"type": "flat", "depth": None, "control_heights": None, "coarsening": 4, "n_ctrl": 6,
+              "compare_flat": False},
+    "lengths": {"tolerance": 0.01, "target": None, "control": False, "n_classes": 3, "rounds": 4},
+    "output": {"meshes": True},
+}
+
+
+def _merge(params: dict) -> dict:
+    """Parameters over the defaults, refusing unknown keys."""
+    unknown = set(params) - set(DEFAULTS) - {"description", "title", "analysis", "reference"}
+    if unknown:
+        raise SceneError(", ".join(sorted(unknown)), f"unknown MRA case key(s); expected {sorted(DEFAULTS)}")
+    out = {}
+    for key, default in DEFAULTS.items():
+        given = params.get(key, {} if isinstance(default, dict) else default)
+        if isinstance(default, dict):
+            if not isinstance(given, dict):
+                raise SceneError(key, f"expected a table, got {type(given).__name__}")
+            if key not in ("geometry", "supports"):
+                bad = set(given) - set(default)
+                if bad:
+                    raise SceneError(f"{key}.{sorted(bad)[0]}", f"unknown key; expected one of {sorted(default)}")
+            out[key] = {**default, **given}
+        else:
+            out[key] = given
+    for key in ("description", "title", "reference"):
+        if key in params:
+            out[key] = params[key]
+    return out
+
+
+def build_grid(geometry: dict) -> QuadGrid:
+    """The planform grid of a case (see the README for the keys of each type)."""
+    kind = geometry.get("type")
+    try:
+        if kind == "rectangle":
+            return rectangle_grid(float(geometry["length_x"]), float(geometry["length_y"]),
+                                  int(geometry["n_i"]), int(geometry["n_j"]), geometry.get("origin", (0, 0, 0)))
+        if kind == "ellipse":
+            return ellipse_grid(float(geometry["a"]), float(geometry["b"]), int(geometry["n"]),
+                                geometry.get("center", (0, 0, 0)))
+        if kind == "disk":
+            r = float(geometry["radius"])
+            return ellipse_grid(r, r, int(geometry["n"]), geometry.get("center", (0, 0, 0)))
+        if kind == "bspline":
+            srf = BSplineSurface(np.asarray(geometry["control_points"], dtype=float),
+                                 int(geometry.get("degree_u", 3)), int(geometry.get("degree_v", 3)),
+                                 weights=geometry.get("weights"))
+            return bspline_surface_grid(srf, int(geometry["n_i"]), int(geometry["n_j"]))
+    except KeyError as exc:
+        raise SceneError(f"geometry.{exc.args[0]}", f"required for geometry type {kind!r}") from None
+    raise SceneError("geometry.type", f"expected 'rectangle', 'ellipse', 'disk' or 'bspline', got {kind!r}")
+
+
+def build_net(p: dict, grid: QuadGrid | None = None) -> HangingNet:
+    """The hanging net of merged case parameters."""
+    grid = build_grid(p["geometry"]) if grid is None else grid
+    r = p["ropes"]
+    return hanging_net(grid, p["supports"], slack=r["slack"], EA=r["EA"], stiffness_ratio=r["stiffness_ratio"],
+                       mass_per_length=r["mass_per_length"], node_mass=p["masses"]["node_mass"],
+                       gravity=p["loads"]["gravity"])
+
+
+def _solver_options(p: dict, progress: Callable[[str], None] | None) -> dict:
+    s = dict(p["solver"])
+    opts = {"scheme": s.pop("scheme"), "rtol": s.pop("rtol"), "velocity_tol": s.pop("velocity_tol"),
+            "acceleration_tol": s.pop("acceleration_tol"), "damping": s.pop("damping"),
+            "linear_solver": s.pop("linear_solver"), "dt": s.pop("dt"),
+            "max_wall_time": s.pop("max_wall_time")}
+    if s.get("max_iterations") is not None:
+        opts["max_iterations"] = int(s["max_iterations"])
+    if progress is not None:
+        def cb(info):
+            progress(f"  {info.scheme} iteration {info.iteration}: max velocity {info.max_velocity:.3e} m/s, "
+                     f"max acceleration {info.max_acceleration:.3e} m/s^2")
+        opts["callback"] = cb
+    return opts
+
+
+def planform_box(net: HangingNet):
+    x = net.grid.nodes
+    return (float(x[:, 0].min()), float(x[:, 0].max())), (float(x[:, 1].min()), float(x[:, 1].max()))
+
+
+def start_state(p: dict, net: HangingNet, options: dict) -> tuple[np.ndarray | None, dict]:
+    """The start state of a case and a note on how it was made (with its cost)."""
+    st = p["start"]
+    kind = st["type"]
+    if kind == "flat":
+        return None, {"type": "flat"}
+    t0 = time.perf_counter()
+    xr, yr = planform_box(net)
+    if kind == "nurbs":
+        if st["control_heights"] is not None:
+            hf = height_field(np.asarray(st["control_heights"], dtype=float), xr, yr)
+        else:
+            depth = st["depth"]
+            if depth is None:
+                raise SceneError("start.depth", "a 'nurbs' start needs control_heights or a depth")
+            hf = dish(xr, yr, float(depth))
+        q0 = surface_start(net, hf)
+        return q0, {"type": "nurbs", "preparation_s": time.perf_counter() - t0}
+    if kind == "coarse_nurbs":
+        # the preliminary phase: hang a coarser version of the same net, fit a
+        # B-spline height field to it, start the full net on that surface
+        coarse_p = _coarsened(p, int(st["coarsening"]))
+        coarse_net = build_net(coarse_p)
+        with warnings.catch_warnings():
+            # a coarse net often has too few free nodes for Eqs. (11)-(12); it only shapes the start
+            warnings.simplefilter("ignore", HypostaticWarning)
+            coarse = form_find(coarse_net, **{**options, "callback": None})
+        pts = coarse.positions.copy()
+        pts[:, 2] -= coarse_net.structure.nodes[:, 2]
+        hf = fit_height_field(pts, xr, yr, n_ctrl=int(st["n_ctrl"]))
+        q0 = surface_start(net, hf)
+        return q0, {"type": "coarse_nurbs", "preparation_s": time.perf_counter() - t0,
+                    "coarse_iterations": int(coarse.relaxation.iterations),
+                    "coarse_converged": bool(coarse.converged), "coarse_nodes": int(coarse_net.structure.n_nodes)}
+    raise SceneError("start.type", f"expected 'flat', 'nurbs' or 'coarse_nurbs', got {kind!r}")
+
+
+def _coarsened(p: dict, factor: int) -> dict:
+    """The same case on a grid ``factor`` times coarser (structured positions scaled)."""
+    g = dict(p["geometry"])
+    keys = [k for k in ("n_i", "n_j", "n") if k in g]
+    old = {k: int(g[k]) for k in keys}
+    for k in keys:
+        if old[k] % factor:
+            raise SceneError(f"geometry.{k}", f"{old[k]} divisions cannot be coarsened by {factor}")
+        g[k] = old[k] // factor
+    sup = dict(p["supports"])
+
+    def scale(pos):
+        return [[int(a) // factor if a >= 0 else -((-int(a) - 1) // factor) - 1 for a in ij] for ij in pos]
+
+    if "positions" in sup:
+        sup["positions"] = scale(sup["positions"])
+    if "frames" in sup:
+        sup["frames"] = [{**f, "from": scale([f["from"]])[0], "to": scale([f["to"]])[0]} for f in sup["frames"]]
+    if "nodes" in sup:
+        raise SceneError("supports.nodes", "a coarse_nurbs start needs supports by groups, positions or frames")
+    return {**p, "geometry": g, "supports": sup}
+
+
+def net_mesh(net: HangingNet, positions, member_fields: dict, point_fields: dict | None = None) -> meshio.Mesh:
+    """Ropes (lines) and grid faces (quads) at ``positions`` with per-rope data."""
+    cells = [("line", net.rope_edges), ("quad", net.grid.quads)]
+    cell_data = {k: [np.asarray(v, dtype=float), np.zeros(len(net.grid.quads))] for k, v in member_fields.items()}
+    support = np.zeros(net.structure.n_nodes)
+    support[net.supports] = 1.0
+    point_data = {"support": support, **(point_fields or {})}
+    return meshio.Mesh(points=np.asarray(positions, dtype=float), cells=cells, point_data=point_data,
+                       cell_data=cell_data)
+
+
+def write_meshes(out: Path, res: FormFindingResult, inv: InvertedShell, tag: str = "") -> list[str]:
+    net = res.net
+    hang = net_mesh(net, res.positions,
+                    {"tension": res.tension, "slack": res.slack.astype(float), "length": res.length,
+                     "rest_length": net.rest_length, "family": net.family.astype(float)},
+                    {"displacement": res.positions - net.structure.nodes})
+    dome = net_mesh(net, inv.positions, {"axial_force": inv.force, "length": res.length,
+                                         "family": net.family.astype(float)})
+    names = [f"hanging{tag}.vtu", f"inverted{tag}.vtu"]
+    write_mesh(out / names[0], hang)
+    write_mesh(out / names[1], dome)
+    return names
+
+
+def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None = None) -> dict:
+    """Form-find one case and write its results.
+
+    Parameters
+    ----------
+    params : dict
+        The case (see ``validation/mra/README.md``): ``geometry``, ``supports``,
+        and optionally ``ropes``, ``masses``, ``loads``, ``solver``, ``start``,
+        ``lengths``, ``output``.
+    out_dir : path-like
+        Directory for ``hanging.vtu``, ``inverted.vtu`` and ``summary.json``.
+    progress : callable, optional
+        Receives progress lines.
+
+    Returns
+    -------
+    dict
+        The summary: ``converged``, ``iterations``, ``max_velocity``,
+        ``max_acceleration``, ``n_slack_ropes``, ``rise``, ``rope_lengths``
+        (statistics), ``wall_time_s`` and more (hypostatic check, reactions,
+        inversion, start comparison, length control).
+    """
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    p = _merge(params)
+    say = progress or (lambda msg: None)
+    net = build_net(p)
+    options = _solver_options(p, progress)
+    say(f"MRA case {p['name']!r}: {net.structure.n_nodes} nodes, {len(net.rope_edges)} ropes, "
+        f"{len(net.supports)} suspension points, scheme {options['scheme']}")
+    q0, start_note = start_state(p, net, options)
+    res = form_find(net, q0, **options)
+    say(res.relaxation.message)
+    summary = {"name": p["name"], **res.summary()}
+    summary["relaxation_wall_time_s"] = summary.pop("wall_time_s")
+    summary["start"] = {**start_note, "iterations": int(res.relaxation.iterations),
+                        "wall_time_s": float(res.relaxation.wall_time_s)}
+    if p["start"]["compare_flat"] and start_note["type"] != "flat":
+        flat = form_find(net, None, **options)
+        prep = start_note.get("preparation_s", 0.0)
+        summary["start"]["flat"] = {
+            "converged": bool(flat.converged), "iterations": int(flat.relaxation.iterations),
+            "wall_time_s": float(flat.relaxation.wall_time_s),
+            "max_position_difference": float(np.max(np.abs(flat.positions - res.positions))),
+        }
+        summary["start"]["iterations_saved"] = int(flat.relaxation.iterations - res.relaxation.iterations)
+        summary["start"]["wall_time_saved_s"] = float(flat.relaxation.wall_time_s - res.relaxation.wall_time_s
+                                                      - prep)
+        say(f"flat start: {flat.relaxation.iterations} iterations, {flat.relaxation.wall_time_s:.3g} s; "
+            f"{start_note['type']} start: {res.relaxation.iterations} iterations, "
+            f"{res.relaxation.wall_time_s + prep:.3g} s with its preparation")
+    inv = invert(res)
+    summary["inverted"] = inv.summary()
+    L = p["lengths"]
+    summary["rope_lengths"] = length_statistics(res.length, float(L["tolerance"]), L["target"])
+    files = []
+    if p["output"]["meshes"]:
+        files += write_meshes(out, res, inv)
+    if L["control"]:
+        lc = control_lengths(res, int(L["n_classes"]), float(L["tolerance"]), int(L["rounds"]), **{
+            **options, "callback": None})
+        summary["length_control"] = lc.summary()
+        if p["output"]["meshes"]:
+            files += write_meshes(out, lc.result, invert(lc.result), tag="_length_control")
+        say(f"length control: conforming ropes per round {lc.n_conforming}")
+    summary["files"] = files + ["summary.json"]
+    summary["wall_time_s"] = time.perf_counter() - t0
+    write_json(out / "summary.json", summary)
+    return summary

@@ -1,0 +1,160 @@
+"""Form finding of a hanging net: relaxation plus the reports a designer reads.
+
+:func:`form_find` checks the net (Eqs. 11-12), lets it fall to rest with the
+chosen relaxation scheme and reports rope tensions, which ropes ended taut or
+slack, the reactions at the suspension points, the equilibrium residual
+relative to the weight, and the rise of the shape.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..solvers.relaxation import RelaxationResult, relax
+from .hypostatic import HypostaticReport, hypostatic_check
+from .net import HangingNet
+
+
+class HypostaticWarning(UserWarning):
+    """The net is not hypostatic (D.o.F <= D.o.C, Eqs. 11-12)."""
+
+
+@dataclass
+class FormFindingResult:
+    """A hanging shape and its reports.
+
+    Attributes
+    ----------
+    net : HangingNet
+    relaxation : RelaxationResult
+    positions : ndarray, shape (n, 3)
+        Node positions at rest.
+    tension : ndarray, shape (m,)
+        Rope forces [N] (zero for slack ropes), in the order of ``net.rope_edges``.
+    length : ndarray, shape (m,)
+        Distances between the rope ends at rest [m].
+    slack : ndarray of bool, shape (m,)
+        Ropes whose ends are closer than their rest length.
+    reactions : ndarray, shape (n_supports, 3)
+        Forces the suspension points exert on the net [N].
+    hypostatic : HypostaticReport
+    residual_over_weight : float
+        Norm of the out-of-balance force at the free DOFs over the weight.
+    rise : float
+        Highest suspension point minus the lowest node [m]: the depth of
+        the hanging net, the rise of the inverted shell.
+    """
+
+    net: HangingNet
+    relaxation: RelaxationResult
+    positions: np.ndarray
+    tension: np.ndarray
+    length: np.ndarray
+    slack: np.ndarray
+    reactions: np.ndarray
+    hypostatic: HypostaticReport
+    residual_over_weight: float
+    rise: float
+    warnings: list = field(default_factory=list)
+
+    @property
+    def converged(self) -> bool:
+        return self.relaxation.success
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.relaxation.q
+
+    def summary(self) -> dict:
+        r = self.relaxation
+        taut = ~self.slack
+        return {
+            "converged": bool(r.success),
+            "message": r.message,
+            "scheme": r.scheme,
+            "iterations": int(r.iterations),
+            "max_velocity": float(r.max_velocity),
+            "max_acceleration": float(r.max_acceleration),
+            "velocity_tol": float(r.velocity_tol),
+            "acceleration_tol": float(r.acceleration_tol),
+            "residual_norm": float(r.residual_norm),
+            "residual_over_weight": float(self.residual_over_weight),
+            "wall_time_s": float(r.wall_time_s),
+            "n_nodes": int(self.net.structure.n_nodes),
+            "n_ropes": int(len(self.tension)),
+            "n_supports": int(len(self.net.supports)),
+            "n_slack_ropes": int(self.slack.sum()),
+            "n_taut_ropes": int(taut.sum()),
+            "all_ropes_taut": bool(taut.all()),
+            "rise": float(self.rise),
+            "tension_max": float(self.tension.max()) if len(self.tension) else 0.0,
+            "tension_min_taut": float(self.tension[taut].min()) if taut.any() else 0.0,
+            "total_weight": float(self.net.total_weight()),
+            "reaction_sum": self.reactions.sum(axis=0).tolist(),
+            "hypostatic": self.hypostatic.as_dict(),
+            "warnings": list(self.warnings),
+        }
+
+
+def rope_state(net: HangingNet, q: np.ndarray):
+    """Tension, length and slackness of every rope at state ``q``."""
+    x = q[: 3 * net.structure.n_nodes].reshape(-1, 3)
+    e = net.rope_edges
+    length = np.linalg.norm(x[e[:, 1]] - x[e[:, 0]], axis=1)
+    L = net.rest_length
+    slack = length <= L
+    tension = np.where(slack, 0.0, net.EA * (length - L) / L)
+    return tension, length, slack
+
+
+def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: HypostaticReport, notes=()):
+    """Reports of a relaxed state."""
+    q = res.q
+    n = net.structure.n_nodes
+    x = q[: 3 * n].reshape(n, 3)
+    tension, length, slack = rope_state(net, q)
+    R = res.reactions[: 3 * n].reshape(n, 3)[net.supports]
+    weight = net.total_weight()
+    resid = system.residual(q)[system.free]
+    rise = float(x[net.supports, 2].max() - x[:, 2].min())
+    return FormFindingResult(
+        net=net, relaxation=res, positions=x, tension=tension, length=length, slack=slack, reactions=R,
+        hypostatic=report, residual_over_weight=float(np.linalg.norm(resid) / max(weight, 1e-300)), rise=rise,
+        warnings=list(notes),
+    )
+
+
+def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit", **relax_options):
+    """Let the net fall into its hanging shape.
+
+    Parameters
+    ----------
+    net : HangingNet
+    q0 : ndarray, optional
+        Start state (default: the planform, i.e. a flat start).
+    scheme : {"implicit", "rk4", "kinetic"}
+        Relaxation scheme (see :mod:`shellform.solvers.relaxation`).
+    **relax_options
+        Passed to :func:`shellform.solvers.relaxation.relax` (tolerances,
+        damping, callback, ...).
+
+    Returns
+    -------
+    FormFindingResult
+
+    Raises
+    ------
+    MechanismError
+        When the net is a mechanism the solver cannot handle.
+    """
+    report = hypostatic_check(net.structure)
+    notes = []
+    if report.warning:
+        warnings.warn(report.warning, HypostaticWarning, stacklevel=2)
+        notes.append(report.warning)
+    system = net.system()
+    res = relax(system, q0, scheme=scheme, **relax_options)
+    return evaluate_state(net, system, res, report, notes)

@@ -1,0 +1,171 @@
+"""MRA form-finding workflow: 9 x 4 net, hypostatic check, inversion, lengths, starts, cases."""
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from shellform import MechanismError, SceneError
+from shellform.geometry import dish, disk_grid, rectangle_grid
+from shellform.mra import (
+    HypostaticWarning,
+    control_lengths,
+    fit_height_field,
+    form_find,
+    hanging_net,
+    hypostatic_check,
+    invert,
+    kmeans_1d,
+    length_statistics,
+    run_mra_case,
+    surface_start,
+)
+
+SIX_POINTS = {"positions": [[0, 0], [-1, 0], [0, -1], [-1, -1], [0, 2], [-1, 2]]}
+
+
+@pytest.fixture(scope="module")
+def net_9x4():
+    return hanging_net(rectangle_grid(9.0, 4.0, 9, 4), SIX_POINTS, slack=0.05)
+
+
+@pytest.fixture(scope="module")
+def hung_9x4(net_9x4):
+    return form_find(net_9x4)
+
+
+def test_9x4_net_hangs_with_every_rope_taut(hung_9x4):
+    res = hung_9x4
+    assert res.converged, res.relaxation.message
+    assert res.slack.sum() == 0 and np.all(res.tension > 0)
+    assert res.residual_over_weight < 1e-8
+    # the suspension points carry the whole weight, and the horizontal pulls cancel
+    W = res.net.total_weight()
+    assert res.reactions[:, 2].sum() == pytest.approx(W, rel=1e-8)
+    assert np.allclose(res.reactions[:, :2].sum(axis=0), 0.0, atol=1e-8 * W)
+    # the shape is symmetric about both mid-lines of the planform
+    x = res.positions
+    mirrored = np.column_stack([9.0 - x[:, 0], x[:, 1], x[:, 2]])
+    d = np.linalg.norm(mirrored[:, None, :] - x[None, :, :], axis=2).min(axis=1)
+    assert d.max() < 1e-7
+    assert res.rise > 0
+
+
+def test_hypostatic_counts_of_the_9x4_net(hung_9x4):
+    h = hung_9x4.hypostatic
+    # 50 nodes: 6 suspension points, 20 other rim nodes, 24 interior nodes
+    assert (h.n_t, h.n_A, h.n_B, h.n_C1, h.n_C2, h.n_interior) == (50, 6, 0, 20, 0, 24)
+    assert h.dof == 300 and h.doc == 9 * 6 + 6 * 20 + 50
+    assert h.hypostatic and h.warning is None
+
+
+def test_not_hypostatic_net_warns_and_mechanism_is_refused():
+    grid = rectangle_grid(2.0, 2.0, 2, 2)
+    net = hanging_net(grid, {"groups": ["boundary"]}, slack=0.05)  # one free node of nine
+    assert not hypostatic_check(net.structure).hypostatic
+    with pytest.warns(HypostaticWarning, match="not hypostatic"):
+        res = form_find(net)
+    assert res.converged and res.warnings
+    # supports that hold only z let the net slide away sideways: the solver cannot handle that
+    sliding = hanging_net(rectangle_grid(3.0, 3.0, 3, 3), {"groups": ["corners"], "dofs": "z"}, slack=0.05)
+    with pytest.raises(MechanismError, match="translate freely"):
+        form_find(sliding)
+
+
+def test_explicit_scheme_finds_the_same_shape():
+    net = hanging_net(rectangle_grid(9.0, 4.0, 9, 4), SIX_POINTS, slack=0.05, EA=1e4)
+    fast = form_find(net, scheme="implicit")
+    paper = form_find(net, scheme="rk4")
+    assert paper.converged and fast.converged
+    assert np.max(np.abs(paper.positions - fast.positions)) < 1e-6
+    assert np.allclose(paper.tension, fast.tension, rtol=1e-5)
+    assert paper.relaxation.iterations > 50 * fast.relaxation.iterations
+
+
+def test_inverted_shell_is_in_compression_and_in_equilibrium(hung_9x4):
+    res = hung_9x4
+    dome = invert(res)
+    x, xi = res.positions, dome.positions
+    assert np.allclose(xi[:, :2], x[:, :2])
+    assert np.allclose(xi[:, 2], -x[:, 2])  # supports at z = 0: the mirror plane
+    assert np.all(dome.force < 0)
+    assert np.allclose(dome.force, -res.tension, rtol=1e-9)
+    # the bar structure of the dome, assembled by the core, is in equilibrium under the same weight
+    assert dome.equilibrium_residual < 1e-8
+    assert dome.reactions[:, 2].sum() == pytest.approx(res.net.total_weight(), rel=1e-8)
+    assert dome.summary()["rise"] == pytest.approx(res.rise)
+
+
+def test_length_statistics_and_classes():
+    lengths = np.array([1.0, 1.004, 0.998, 1.5, 1.502, 2.0])
+    st = length_statistics(lengths, tol=0.01, target=1.0)
+    assert st["n_within_target"] == 3
+    assert st["n_classes"] == 3 and st["n_in_largest_class"] == 3
+    assert st["min"] == 0.998 and st["max"] == 2.0
+    c, lab = kmeans_1d(lengths, 3)
+    assert np.allclose(c, [np.mean(lengths[:3]), 1.501, 2.0])
+    st2 = length_statistics(lengths, tol=0.001, centres=c)
+    assert st2["n_conforming"] == 4  # 1.004 and 0.998 are more than 0.1 % away from 1.000667
+
+
+def test_length_control_increases_conforming_ropes():
+    net = hanging_net(disk_grid(4.0, 8), {"groups": ["boundary"]}, slack=0.05)
+    res = form_find(net)
+    lc = control_lengths(res, n_classes=3, tol=0.01, rounds=3)
+    assert lc.result.converged
+    assert lc.n_conforming[0] < max(lc.n_conforming[1:])
+    stats = lc.summary()["statistics"]
+    assert stats["n_conforming"] == max(lc.n_conforming[1:])
+    assert stats["n_classes"] == 3
+
+
+def test_surface_start_reaches_the_same_equilibrium(net_9x4, hung_9x4):
+    x = hung_9x4.positions
+    fitted = fit_height_field(x, (0.0, 9.0), (0.0, 4.0), n_ctrl=6)
+    assert np.max(np.abs(fitted.z(x[:, 0], x[:, 1]) - x[:, 2])) < 0.1 * hung_9x4.rise
+    q0 = surface_start(net_9x4, fitted)
+    assert np.allclose(q0.reshape(-1, 3)[net_9x4.supports], net_9x4.structure.nodes[net_9x4.supports])
+    res = form_find(net_9x4, q0)
+    assert res.converged
+    assert np.max(np.abs(res.positions - x)) < 1e-7
+    q1 = surface_start(net_9x4, dish((0, 9), (0, 4), 1.0))
+    assert q1.reshape(-1, 3)[:, 2].min() < -0.5
+
+
+def test_run_mra_case_writes_meshes_and_summary(tmp_path):
+    params = {
+        "name": "small",
+        "geometry": {"type": "rectangle", "length_x": 9.0, "length_y": 4.0, "n_i": 9, "n_j": 4},
+        "supports": SIX_POINTS,
+        "ropes": {"slack": 0.05},
+        "start": {"type": "nurbs", "depth": 1.5, "compare_flat": True},
+        "lengths": {"target": 1.05, "tolerance": 0.001},
+    }
+    lines = []
+    s = run_mra_case(params, tmp_path, progress=lines.append)
+    for key in ("converged", "iterations", "max_velocity", "max_acceleration", "n_slack_ropes", "rise",
+                "rope_lengths", "wall_time_s"):
+        assert key in s
+    assert s["converged"] and s["n_slack_ropes"] == 0
+    assert s["rope_lengths"]["n_within_target"] == 85
+    assert s["start"]["flat"]["max_position_difference"] < 1e-7
+    assert json.loads((tmp_path / "summary.json").read_text())["n_ropes"] == 85
+    hang = meshio.read(tmp_path / "hanging.vtu")
+    dome = meshio.read(tmp_path / "inverted.vtu")
+    assert len(hang.cells_dict["line"]) == 85 and len(hang.cells_dict["quad"]) == 36
+    assert np.allclose(dome.points[:, 2], -hang.points[:, 2])
+    assert np.all(dome.cell_data_dict["axial_force"]["line"] < 0)
+    assert any("iteration" in line for line in lines)
+
+
+def test_case_input_errors_name_the_key(tmp_path):
+    good = {"geometry": {"type": "disk", "radius": 2.0, "n": 4}, "supports": {"groups": ["boundary"]}}
+    with pytest.raises(SceneError, match="geometry.type"):
+        run_mra_case({**good, "geometry": {"type": "torus"}}, tmp_path)
+    with pytest.raises(SceneError, match="geometry.radius"):
+        run_mra_case({**good, "geometry": {"type": "disk", "n": 4}}, tmp_path)
+    with pytest.raises(SceneError, match="solver.schem"):
+        run_mra_case({**good, "solver": {"schem": "rk4"}}, tmp_path)
+    with pytest.raises(SceneError, match="start.depth"):
+        run_mra_case({**good, "start": {"type": "nurbs"}}, tmp_path)
