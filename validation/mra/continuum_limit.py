@@ -1,0 +1,97 @@
+"""Continuum limit of the MRA net: a square net with equal force densities under a
+uniform load approaches the small-slope membrane as the grid is refined.
+
+Three solutions of the same problem (side a = 1 m, load p = 1 N/m^2, membrane
+force N = q = 1 N/m):
+
+1. the MRA relaxation (implicit scheme) of nets of n x n cells whose ropes all
+   have the force density q and whose nodes are masses of weight p h^2;
+2. the same nets as a linear force-density problem solved with pyamg;
+3. the continuum membrane N laplacian(w) = -p by scikit-fem (quadratic
+   triangles, pyamg-preconditioned CG), checked against the analytic
+   coefficient of published.toml (analytic.membrane_small_slope).
+
+Writes ``results/continuum_limit.png`` (centre-deflection error against the
+grid spacing) and ``results/continuum_limit.json``.
+
+Run:  python validation/mra/continuum_limit.py
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # tiny BLAS calls: threads only add overhead
+
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import tomllib  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from shellform.assembly import build_system  # noqa: E402
+from shellform.mra.membrane import force_density_net, force_density_solve, membrane_centre_deflection  # noqa: E402
+from shellform.solvers.relaxation import relax  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+REFERENCE = Path(os.environ.get("SHELLFORM_REFERENCE", "/work/shared/reference/published.toml"))
+
+
+def main(sizes=(4, 8, 16, 32, 64, 128)) -> dict:
+    out = HERE / "results"
+    out.mkdir(exist_ok=True)
+    coeff = 0.0736714
+    if REFERENCE.exists():
+        coeff = tomllib.loads(REFERENCE.read_text())["analytic"]["membrane_small_slope"]["square_coefficient"]
+    t0 = time.perf_counter()
+    w_fem = membrane_centre_deflection(refine=7)
+    fem_time = time.perf_counter() - t0
+    rows = []
+    for n in sizes:
+        s, grid, centre = force_density_net(n)
+        system = build_system(s)
+        res = relax(system, scheme="implicit", rtol=1e-10)
+        w_mra = -res.q[3 * centre + 2]
+        w_fd = force_density_solve(n)[n // 2 - 1, n // 2 - 1]
+        rows.append({
+            "n": n, "h": 1.0 / n, "converged": bool(res.success), "iterations": int(res.iterations),
+            "wall_time_s": float(res.wall_time_s), "w_mra": float(w_mra), "w_force_density": float(w_fd),
+            "mra_vs_force_density": float(abs(w_mra - w_fd) / w_fd),
+            "error_vs_continuum": float(abs(w_mra - w_fem) / w_fem),
+        })
+        print(f"n = {n:4d}: MRA {w_mra:.8f} ({res.iterations} it., {res.wall_time_s:.2f} s), "
+              f"force density {w_fd:.8f}, error vs continuum {rows[-1]['error_vs_continuum']:.3e}")
+    h = np.array([r["h"] for r in rows])
+    err = np.array([r["error_vs_continuum"] for r in rows])
+    order = np.polyfit(np.log(h), np.log(err), 1)[0]
+    summary = {
+        "continuum_fem": w_fem, "continuum_fem_time_s": fem_time, "analytic_coefficient": coeff,
+        "fem_vs_analytic": abs(w_fem - coeff) / coeff, "observed_order": float(order), "nets": rows,
+    }
+    (out / "continuum_limit.json").write_text(json.dumps(summary, indent=2) + "\n")
+
+    fig, ax = plt.subplots(figsize=(5.5, 4.0))
+    ax.loglog(h, err, "o-", label="MRA net (implicit relaxation)")
+    ax.loglog(h, [abs(r["w_force_density"] - w_fem) / w_fem for r in rows], "x", ms=9,
+              label="linear force density (pyamg)")
+    ax.loglog(h, err[0] * (h / h[0]) ** 2, "k--", lw=0.8, label="slope 2")
+    ax.set_xlabel("grid spacing h / a")
+    ax.set_ylabel("relative error of the centre deflection")
+    ax.set_title(f"Square net, equal force densities -> membrane\n(observed order {order:.2f})")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "continuum_limit.png", dpi=150)
+    print(f"continuum (scikit-fem P2): {w_fem:.8f}; analytic coefficient {coeff}; observed order {order:.2f}")
+    return summary
+
+
+if __name__ == "__main__":
+    sizes = tuple(int(a) for a in sys.argv[1:]) or (4, 8, 16, 32, 64, 128)
+    main(sizes)
