@@ -48,6 +48,12 @@ from .hemisphere import HemisphereModel, PrestressResult
 
 MODES = ("I", "II")
 
+#: Newton solves use the LDL^T factorisation only: a solve that fails its
+#: accuracy check (a tangent next to a critical point) is then retried with a
+#: regularising shift, which is cheap, instead of a sparse LU factorisation,
+#: which costs twenty LDL^T factorisations on these networks
+LINEAR_SOLVER = "ldl"
+
 
 @dataclass
 class IndentationSetup:
@@ -290,21 +296,100 @@ def count_negative(K) -> int:
         return -1
 
 
-def _lowest_mode(K) -> np.ndarray | None:
+def _eigsh_about(K, sigma: float):
+    """Eigenpair of ``K`` nearest ``sigma`` by shift-invert Lanczos, inverting with LDL^T."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    n = K.shape[0]
+    A = K if sigma == 0.0 else (K - sigma * sp.identity(n, format="csr")).tocsr()
+    F = LDLFactor(A)
+    op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b), refine=True), dtype=float)
+    w, V = spla.eigsh(K, k=1, sigma=sigma, which="LM", OPinv=op, tol=1e-9)
+    return float(w[0]), V[:, 0], F
+
+
+def smallest_eigenpair(K) -> tuple[float, np.ndarray | None]:
+    """The algebraically smallest eigenvalue of a symmetric tangent and its unit eigenvector.
+
+    Lanczos in shift-invert mode, the inverse applied with an LDL^T
+    factorisation. When ``K`` is positive definite the shift is zero (the
+    smallest eigenvalue is the one closest to zero). Otherwise the shift is
+    moved below the whole spectrum, checked by Sylvester's law (no negative
+    pivot in ``K - sigma I``), so that the eigenvalue nearest the shift is
+    the most negative one rather than a soft positive one. The shift is
+    never a fraction of the largest diagonal entry: in a rod network the
+    softest eigenvalues are twelve orders of magnitude below it. Falls back
+    to :func:`~shellform.solvers.stability.critical_modes` when the
+    factorisations fail.
+    """
+    import scipy.sparse.linalg as spla
+
     try:
-        _, V = critical_modes(K, 1)
-        return V[:, 0]
+        lam, v, F = _eigsh_about(K, 0.0)
+        if F.n_negative_pivots == 0 or (lam < 0 and F.n_negative_pivots == 1):
+            return lam, v
+        sigma = -2.0 * abs(lam)
+        for _ in range(40):
+            import scipy.sparse as sp
+
+            G = LDLFactor((K - sigma * sp.identity(K.shape[0], format="csr")).tocsr())
+            if G.n_negative_pivots == 0:
+                lam, v, _ = _eigsh_about(K, sigma)
+                return lam, v
+            sigma *= 4.0
+    except (SingularMatrixError, RuntimeError, spla.ArpackNoConvergence, ValueError):
+        pass
+    try:
+        w, V = critical_modes(K, 1)
+        return float(w[0]), V[:, 0]
     except InertiaError:
-        return None
+        return float("nan"), None
+
+
+def _lowest_mode(K) -> np.ndarray | None:
+    return smallest_eigenpair(K)[1]
+
+
+def _lowest_eigenvalue(K) -> float:
+    return smallest_eigenpair(K)[0]
+
+
+def _dynamic_step_out(setup: IndentationSetup, q: np.ndarray, mu: float, h: float, damping: float, t_max: float):
+    """Let the structure move from ``q`` under damped implicit Euler dynamics until it is nearly at rest.
+
+    This is the paper's own way through a snap (inertia and damping carry the
+    structure to the next stable state). Returns the last state, or ``q``
+    when no time integrator is available.
+    """
+    try:
+        from ..solvers.implicit_euler import implicit_euler, lumped_mass
+    except ImportError:  # pragma: no cover - the integrator is optional here
+        return q, 0
+    system = setup.system
+    mass = lumped_mass(system.structure, setup.model.network)
+    scale = max(float(np.linalg.norm(system.residual(system.state(mu=mu, base=q))[system.constrained])), 1e-300)
+
+    def stop(t, qq, v, static):
+        return static <= 1e-7 * scale
+
+    res = implicit_euler(system, h, t_max, q0=q, mass=mass, damping=damping, mu=mu, stop=stop,
+                         linear_solver=LINEAR_SOLVER)
+    return res.q, int(sum(res.newton_iterations))
 
 
 def _settle(setup: IndentationSetup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, amplitude: float,
-            max_tries: int = 4):
-    """A stable equilibrium at ``mu`` reached by descending the energy from ``q0``.
+            method: str = "dynamic", max_tries: int = 4, rounds: int = 10, iterations_per_round: int = 40,
+            time_step: float = 1.0e-3, damping: float = 100.0, t_max: float = 0.5):
+    """A stable equilibrium at ``mu`` reached from the critical state ``q0``.
 
-    The start is pushed along ``mode_free`` (the critical mode) so that the
-    descent leaves the unstable state; when it ends on a saddle, it is pushed
-    along the saddle's unstable mode and tried again.
+    The start is pushed along ``mode_free`` (the critical mode) so that it
+    leaves the unstable state; then either damped dynamics (``"dynamic"``,
+    implicit Euler with time step ``time_step`` and mass-proportional damping
+    ``damping`` [1/s], for at most ``t_max`` seconds) or a pure energy descent
+    (``"energy"``, Newton with regularised steps) carries it downhill, and
+    Newton polishes the result. When it ends on a saddle, it is pushed along
+    the saddle's unstable mode and tried again.
     """
     system = setup.system
     free = system.free
@@ -318,11 +403,21 @@ def _settle(setup: IndentationSetup, q0: np.ndarray, mu: float, mode_free: np.nd
             trans = np.abs(d[:n_x]).max()
             if trans > 0:
                 q = q + amplitude * setup.model.radius * d / trans
-        res = solve_static(system, q, mu=mu, merit="energy", max_iter=400)
-        iterations += res.iterations
-        if not res.success:
+        if method == "dynamic":
+            q, its = _dynamic_step_out(setup, q, mu, time_step, damping, t_max)
+            iterations += its
+        # descend in rounds, accepting the state in between: a snap can turn rod
+        # edges far from the stored frames, and the frames must follow
+        for _ in range(rounds):
+            res = solve_static(system, q, mu=mu, merit="energy", max_iter=iterations_per_round,
+                               linear_solver=LINEAR_SOLVER)
+            iterations += res.iterations
+            q = res.q
+            system.accept(q)
+            if res.success:
+                break
+        else:
             return None, iterations, f"energy descent failed: {res.message}"
-        q = res.q
         K = system.tangent_free(q)
         n_neg = count_negative(K)
         if n_neg == 0:
@@ -333,26 +428,34 @@ def _settle(setup: IndentationSetup, q0: np.ndarray, mu: float, mode_free: np.nd
     return None, iterations, f"still unstable after {max_tries} pushes"
 
 
-def _bisect_stability(setup, qa, mua, qb, mub, tol):
+def _locate_stability_loss(setup, qa, mua, qb, mub, tol):
     """Locate where the path between a stable point A and an unstable point B loses stability.
 
-    Bisection on ``mu`` (which increases from A to B: no fold in between),
-    each point solved by Newton from the interpolated state. Returns
-    ``(mu, q, located)`` at the first unstable point of the final bracket.
+    ``mu`` increases from A to B (no fold in between). Bisection on ``mu``
+    with the stability of each point from the inertia of its tangent (the
+    eigenvalue that crosses zero need not be the smallest one at A: soft
+    twisting modes of the rods can lie below it), each point solved by
+    Newton from the interpolated state. Returns ``(mu, q, located)``: the
+    middle of the final bracket, the state at its unstable end, and whether
+    the bracket came down to ``tol``.
     """
     system = setup.system
     lo, hi = (mua, qa), (mub, qb)
     while hi[0] - lo[0] > tol:
         mu = 0.5 * (lo[0] + hi[0])
-        w = (mu - lo[0]) / (hi[0] - lo[0])
-        res = solve_static(system, (1 - w) * lo[1] + w * hi[1], mu=mu, merit="residual", max_iter=30)
+        start = 0.5 * (lo[1] + hi[1])
+        res = solve_static(system, start, mu=mu, merit="residual", max_iter=30, linear_solver=LINEAR_SOLVER)
         if not res.success:
-            return hi[0], hi[1], False
+            # next to the critical point the tangent is nearly singular and the
+            # plain Newton step overshoots; a regularised step does not
+            res = solve_static(system, start, mu=mu, merit="energy", max_iter=30, linear_solver=LINEAR_SOLVER)
+        if not res.success:
+            return 0.5 * (lo[0] + hi[0]), hi[1], False
         if count_negative(system.tangent_free(res.q)) == 0:
             lo = (mu, res.q)
         else:
             hi = (mu, res.q)
-    return hi[0], hi[1], True
+    return 0.5 * (lo[0] + hi[0]), hi[1], True
 
 
 def trace_indentation(
@@ -362,10 +465,11 @@ def trace_indentation(
     snap_offset: float = 2.0e-3,
     push: float = 2.0e-2,
     min_jump: float = 0.03,
-    locate_tol: float = 1.0e-4,
+    locate_tol: float = 5.0e-4,
     max_snaps: int = 12,
     max_steps: int = 3000,
     rtol: float = 1e-9,
+    snap_method: str = "dynamic",
     classify: bool = True,
     store_states: bool = False,
     progress: Callable[[float, float, int], None] | None = None,
@@ -391,9 +495,13 @@ def trace_indentation(
         simply continues on the stable branch that crosses there (a
         supercritical bifurcation), recorded in ``exchanges``.
     locate_tol : float
-        Bracket in ``dD / R`` to which a bifurcation is located.
+        Accuracy in ``dD / R`` to which a bifurcation is located.
     max_snaps : int
         Stop after this many losses of stability.
+    snap_method : {"dynamic", "energy"}
+        How the stable state after a critical point is found: damped
+        implicit Euler dynamics then Newton (the paper's physics), or a pure
+        energy descent (faster, but it can creep along flat valleys).
     classify : bool
         Label every point's configuration.
     store_states : bool
@@ -449,7 +557,7 @@ def trace_indentation(
             system, "displacement", q0=q, p0=p, callback=on_point,
             initial_increment=increment * R, parameter_bounds=(-np.inf, dD_max),
             max_steps=max_steps - totals["steps"], rtol=rtol, store_states=False,
-            stability=False,
+            stability=False, locate_tol=1e-2,
         )
         totals["steps"] += res.steps
         totals["newton"] += res.newton_iterations
@@ -480,9 +588,9 @@ def trace_indentation(
         if folds and folds[-1].located:
             ev = folds[-1]
             mu_c, q_c, kind, located = ev.mu, ev.q, "limit", True
-            mode_free = ev.mode[system.free] if np.any(ev.mode) else _lowest_mode(system.tangent_free(q_c))
+            mode_free = _lowest_mode(system.tangent_free(q_c))
         elif mu_b > mu_a:
-            mu_c, q_c, located = _bisect_stability(setup, q_a, mu_a, q_b, mu_b, locate_tol * R)
+            mu_c, q_c, located = _locate_stability_loss(setup, q_a, mu_a, q_b, mu_b, locate_tol * R)
             kind = "bifurcation"
             mode_free = _lowest_mode(system.tangent_free(q_c))
         else:
@@ -490,7 +598,7 @@ def trace_indentation(
             mode_free = _lowest_mode(system.tangent_free(q_b))
         f_c = setup.force(q_c)
         mu_new = min(mu_c + snap_offset * R, dD_max)
-        q_new, its, why = _settle(setup, q_c, mu_new, mode_free, push)
+        q_new, its, why = _settle(setup, q_c, mu_new, mode_free, push, method=snap_method)
         totals["newton"] += its
         if q_new is None:
             success = False
@@ -612,8 +720,7 @@ def classify_configuration(model: HemisphereModel, q: np.ndarray, tol: float = 0
             return "S"
     if abs(f["shear"]) > tol or abs(f["twist"]) > tol:
         return "W"
-    if f["apex_height"] >= f["top"] - apex_tol:
-        return "U+"
-    if f["apex_height"] <= f["bottom"] + apex_tol:
-        return "U-"
-    return "O+" if np.mean(b) > 0 else "O-"
+    up = float(np.mean(b)) > 0
+    if up:
+        return "U+" if f["apex_height"] >= f["top"] - apex_tol else "O+"
+    return "U-" if f["apex_height"] <= f["bottom"] + apex_tol else "O-"
