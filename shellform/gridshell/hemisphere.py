@@ -339,6 +339,10 @@ class PrestressResult:
     steps, iterations : int
         Load steps and total Newton iterations.
     wall_time_s : float
+    frames : dict
+        The rods' reference frames at ``q`` (:meth:`ReferenceFrames.state`):
+        the twist angles in ``q`` are measured from them, so any later
+        analysis starting from ``q`` restores them first.
     """
 
     q: np.ndarray
@@ -348,6 +352,7 @@ class PrestressResult:
     steps: int
     iterations: int
     wall_time_s: float
+    frames: dict = field(default_factory=dict)
 
 
 def prestress_on_net(model: HemisphereModel, rtol: float = 1e-10) -> PrestressResult:
@@ -359,7 +364,8 @@ def prestress_on_net(model: HemisphereModel, rtol: float = 1e-10) -> PrestressRe
     res = solve_static(system, rtol=rtol, max_iter=200)
     if res.success:
         system.accept(res.q)
-    return PrestressResult(res.q, system, res.success, res.message, 1, res.iterations, time.perf_counter() - t0)
+    return PrestressResult(res.q, system, res.success, res.message, 1, res.iterations, time.perf_counter() - t0,
+                           model.network.frames.state())
 
 
 def prestress_by_paths(model: HemisphereModel, n_steps: int = 40, rtol: float = 1e-10) -> PrestressResult:
@@ -376,7 +382,8 @@ def prestress_by_paths(model: HemisphereModel, n_steps: int = 40, rtol: float = 
     system = build_rod_system(model.network)
     res = solve_incremental(system, n_steps=n_steps, paths=model.paths, t_end=1.0, rtol=rtol, max_iter=60)
     return PrestressResult(
-        res.q, system, res.success, res.message, res.n_steps, int(sum(res.iterations)), time.perf_counter() - t0
+        res.q, system, res.success, res.message, res.n_steps, int(sum(res.iterations)), time.perf_counter() - t0,
+        model.network.frames.state(),
     )
 
 

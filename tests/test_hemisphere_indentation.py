@@ -1,0 +1,136 @@
+"""Apex indentation of the hemispherical gridshell: stability tools, the mode I and II paths on a coarse model."""
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from shellform.errors import ModelError
+from shellform.gridshell.hemisphere import build_hemisphere, prestress_on_net
+from shellform.gridshell.indentation import (
+    classify_configuration,
+    count_negative,
+    indentation_system,
+    smallest_eigenpair,
+    trace_indentation,
+)
+
+# published.toml [hemisphere.mode_I], [hemisphere.mode_II]
+MODE_I = [1.1, 1.7, 1.9]
+MODE_II = [1.50, 1.75]
+TOL = 0.1
+DL = 4.0e-3  # coarse Voronoi length: the whole path in a few seconds
+
+
+@pytest.fixture(scope="module")
+def model():
+    m = build_hemisphere(5, voronoi_length=DL)
+    return m, prestress_on_net(m)
+
+
+@pytest.fixture(scope="module")
+def mode_one(model):
+    m, pre = model
+    setup = indentation_system(m, pre, mode="I")
+    return setup, trace_indentation(setup)
+
+
+def test_inertia_and_smallest_eigenpair_match_dense_eigenvalues():
+    rng = np.random.default_rng(3)
+    # a rod-like spectrum: stiff and very soft directions, a few negative ones
+    n = 120
+    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    w = np.concatenate([[-3.0, -0.02], 10.0 ** rng.uniform(-1.5, 4, n - 2)])
+    K = sp.csr_matrix((Q * w) @ Q.T)
+    K = (K + K.T) * 0.5
+    assert count_negative(K) == 2
+    lam, v = smallest_eigenpair(K)
+    ref = sla.eigh(K.toarray())
+    assert lam == pytest.approx(ref[0][0], rel=1e-8)
+    assert abs(v @ ref[1][:, 0]) == pytest.approx(1.0, abs=1e-8)
+    # positive definite: the eigenvalue closest to zero
+    K2 = sp.csr_matrix((Q * np.abs(w)) @ Q.T)
+    K2 = (K2 + K2.T) * 0.5
+    assert count_negative(K2) == 0
+    assert smallest_eigenpair(K2)[0] == pytest.approx(0.02, rel=1e-8)
+
+
+def test_prescribed_apex_nodes(model):
+    m, pre = model
+    one = indentation_system(m, pre, mode="I")
+    two = indentation_system(m, pre, mode="II")
+    assert len(one.nodes) == 2 and len(two.nodes) == 6
+    assert np.array_equal(one.system.prescribed, np.sort(m.structure.node_dofs(one.nodes).ravel()))
+    # the state at dD is the pre-stressed state with the apex lowered by dD
+    q = one.system.state(pre.q[one.system.free], mu=0.01)
+    assert np.allclose(q[one.z_dofs], pre.q[one.z_dofs] - 0.01)
+    # the model itself is not changed: both modes run on it
+    assert m.structure.prescribed_dofs.size == 0
+    with pytest.raises(ModelError, match="mode"):
+        indentation_system(m, pre, mode="III")
+
+
+def test_force_is_the_reaction_at_the_apex(mode_one):
+    setup, res = mode_one
+    q = setup.system.state(setup.system.q_ref[setup.system.free], mu=0.0)
+    r = setup.system.reactions(q)
+    assert setup.force(q) == pytest.approx(-r[setup.z_dofs].sum())
+    assert res.y[0] == pytest.approx(0.0, abs=1e-6 * np.abs(res.y).max())
+
+
+def test_mode_one_snaps_at_the_published_thresholds(mode_one):
+    _, res = mode_one
+    assert res.success, res.message
+    assert res.x[-1] == pytest.approx(2.0)
+    assert len(res.snaps) == 3
+    for computed, published in zip(res.thresholds, MODE_I):
+        assert abs(computed - published) <= TOL, (res.thresholds, MODE_I)
+    assert all(s.located for s in res.snaps)
+
+
+def test_mode_one_curve_shape(mode_one):
+    _, res = mode_one
+    x, y, seg = res.x, res.y, res.segment
+    first = res.snaps[0]
+    # stiff rise, the largest force just before the first snap, a drop at every snap
+    before = seg == 0
+    assert np.all(np.diff(y[before][: 5]) > 0)
+    assert res.max_force == pytest.approx(y[before].max())
+    assert y[before][np.argmax(x[before])] > 0.9 * res.max_force
+    for s in res.snaps:
+        assert abs(s.force_after) < abs(s.force_before)  # the structure lets go of the indenter
+        assert s.jump > 0.1
+    assert first.force_after < 0.8 * first.force_before
+    # the gridshell pulls back on the indenter late in the path, and lets go at dD = 2R
+    assert y.min() < -0.2 * res.max_force
+    assert abs(y[-1]) < 0.1 * res.max_force
+    # dD never decreases along the recorded stable path
+    assert np.all(np.diff(x) >= -1e-12)
+
+
+def test_mode_one_configurations(mode_one):
+    _, res = mode_one
+    labels = res.labels
+    assert labels[0] == "U+" and labels[-1] == "U-"
+    order = [lab for i, lab in enumerate(labels) if i == 0 or lab != labels[i - 1]]
+    for a, b in (("U+", "O+"), ("O+", "W"), ("W", "S"), ("S", "U-")):
+        assert order.index(a) < order.index(b), order
+    assert res.snaps[1].label_after == "S"
+
+
+def test_mode_two_first_threshold(model):
+    m, pre = model
+    res = trace_indentation(indentation_system(m, pre, mode="II"))
+    assert res.success, res.message
+    assert len(res.snaps) == 2
+    for computed, published in zip(res.thresholds, MODE_II):
+        assert abs(computed - published) <= TOL, (res.thresholds, MODE_II)
+
+
+def test_a_dome_and_its_mirror_image_are_labelled(model):
+    m, pre = model
+    assert classify_configuration(m, pre.q) == "U+"
+    q = pre.q.copy()
+    x = q[: 3 * m.structure.n_nodes].reshape(-1, 3)
+    x[:, 2] *= -1.0
+    assert classify_configuration(m, q) == "U-"
