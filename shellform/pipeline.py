@@ -145,7 +145,24 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
     return summary
 
 
-ANALYSES = {"static": run_static, "continuation": run_continuation}
+def run_form_finding(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
+    from .mra.case import run_mra_case
+
+    summary = run_mra_case(scene["mra"], out, progress)
+    summary.setdefault("analysis", "mra")
+    return summary
+
+
+def run_form_and_buckling(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
+    from .formbuckle import run_form_and_buckle
+
+    summary = run_form_and_buckle(scene["mra"], out, progress)
+    summary.setdefault("analysis", "form_and_buckle")
+    return summary
+
+
+ANALYSES = {"static": run_static, "continuation": run_continuation, "mra": run_form_finding,
+            "form_and_buckle": run_form_and_buckling}
 
 
 def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False) -> dict:

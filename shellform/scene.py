@@ -151,8 +151,38 @@ SCENE = Table(
 )
 
 
+def is_form_finding(data: dict) -> bool:
+    """A form-finding (MRA) scene describes a planform ``[geometry]`` instead of ``[nodes]``."""
+    analysis = data.get("analysis")
+    return (isinstance(analysis, dict) and analysis.get("type") == "mra") or (
+        "geometry" in data and "nodes" not in data)
+
+
+def parse_form_finding(data: dict) -> dict:
+    """Validate an MRA form-finding scene (keys in ``validation/mra/README.md``)."""
+    from .mra.case import _merge
+
+    analysis = data.get("analysis", {})
+    if not isinstance(analysis, dict) or set(analysis) - {"type"}:
+        raise SceneError("analysis", "a form-finding scene takes only analysis.type = 'mra'; its solver "
+                         "settings go in [solver]")
+    from .formbuckle import _merge_buckling
+
+    params = {k: v for k, v in data.items() if k not in ("analysis", "buckling")}
+    merged = _merge(params)
+    buckling = _merge_buckling(data["buckling"]) if "buckling" in data else None
+    title = data.get("title") or data.get("description") or merged["name"]
+    if not isinstance(title, str):
+        raise SceneError("title", f"got {title!r}; expected a string")
+    if buckling is not None:
+        return {"title": title, "analysis": {"type": "form_and_buckle"}, "mra": {**params, "buckling": data["buckling"]}}
+    return {"title": title, "analysis": {"type": "mra"}, "mra": params}
+
+
 def parse_scene(data: dict) -> dict:
     """Validate a scene given as a dictionary; return it with defaults filled."""
+    if is_form_finding(data):
+        return parse_form_finding(data)
     scene = check_table("", data, SCENE)
     n = len(scene["nodes"]["coordinates"])
     for i, m in enumerate(scene["members"]):

@@ -149,11 +149,15 @@ def test_command_line_reports_scene_errors_without_traceback(tmp_path):
     assert "Traceback" not in proc.stderr
 
 
-def test_default_scene_runs(tmp_path):
+def test_default_scene_finds_a_form_and_its_first_critical_point(tmp_path):
     assert main(["run", "--out", str(tmp_path), "--quiet"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"]
-    assert summary["max_displacement"] > 0.1
+    assert summary["n_taut_ropes"] > summary["n_slack_ropes"]
+    assert summary["buckling"]["critical_load_factor"] > 0
+    assert summary["buckling"]["critical_kind"] in ("limit", "bifurcation")
+    for name in ("hanging.vtu", "inverted.vtu", "buckling_path.csv", "buckling_curve.png"):
+        assert (tmp_path / name).exists(), name
 
 
 def test_scene_reference_in_docs_matches_the_schema(capsys):
