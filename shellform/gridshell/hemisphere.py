@@ -142,6 +142,33 @@ class HemisphereModel:
         """Node coordinates ``(n_nodes, 3)`` of a state."""
         return np.asarray(q)[: 3 * self.structure.n_nodes].reshape(-1, 3)
 
+    def mirror_map(self, axis: int) -> np.ndarray:
+        """Node permutation of the net's reflection ``x[axis] -> -x[axis]`` (``axis`` 0 or 1).
+
+        Node ``i`` of the reflected state is node ``mirror_map(axis)[i]`` of the
+        original, on a rod of the same family (coincident penalty-joint nodes
+        are told apart by their rod).
+        """
+        from scipy.spatial import cKDTree
+
+        cache = self.__dict__.setdefault("_mirror_cache", {})
+        if axis not in cache:
+            family = np.zeros(self.structure.n_nodes, dtype=np.int64)
+            for rod, idx in zip(self.net.rods, self.rod_nodes):
+                if rod.family == "v":
+                    family[idx] = 1
+            x = self.sphere_nodes
+            y = x.copy()
+            y[:, axis] *= -1.0
+            d, cand = cKDTree(x).query(y, k=2)
+            same = family[cand[:, 1]] == family
+            pick = np.where((d[:, 1] <= d[:, 0] + 1e-9 * self.radius) & same & (family[cand[:, 0]] != family),
+                            cand[:, 1], cand[:, 0])
+            if np.max(np.linalg.norm(x[pick] - y, axis=1)) > 1e-6 * self.radius:
+                raise ModelError("hemisphere: the net is not mirror symmetric")
+            cache[axis] = pick
+        return cache[axis]
+
     def rod_polylines(self, q: np.ndarray) -> list[np.ndarray]:
         """Every rod's centreline at state ``q`` (list of ``(N_k, 3)`` arrays)."""
         x = self.positions(q)

@@ -163,6 +163,8 @@ class Snap:
         Configuration before and after (:func:`classify_configuration`).
     jump : float
         Largest node displacement during the snap, relative to ``R``.
+    merged : int
+        Further losses of stability right after landing, merged into this snap.
     """
 
     dD: float
@@ -174,6 +176,7 @@ class Snap:
     label_before: str = ""
     label_after: str = ""
     jump: float = 0.0
+    merged: int = 0
 
     def to_dict(self) -> dict:
         return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in self.__dict__.items()}
@@ -469,6 +472,7 @@ def trace_indentation(
     snap_offset: float = 2.0e-3,
     push: float = 2.0e-2,
     min_jump: float = 0.03,
+    merge_within: float = 0.01,
     locate_tol: float = 5.0e-4,
     max_snaps: int = 12,
     max_steps: int = 3000,
@@ -498,6 +502,11 @@ def trace_indentation(
         than ``min_jump R`` to the next stable state; below that the path
         simply continues on the stable branch that crosses there (a
         supercritical bifurcation), recorded in ``exchanges``.
+    merge_within : float
+        A snap that lands in a state which loses stability again within
+        ``merge_within R`` of further indentation is merged with the next one
+        (a dynamic experiment passes through such a state without stopping);
+        ``Snap.merged`` counts the merges.
     locate_tol : float
         Accuracy in ``dD / R`` to which a bifurcation is located.
     max_snaps : int
@@ -540,6 +549,7 @@ def trace_indentation(
             progress(mu / R, fs[-1] / setup.force_scale, n_neg)
 
     losses = 0
+    segment_start, snap_start_q = None, None
     while True:
         last = {}
 
@@ -622,15 +632,27 @@ def trace_indentation(
         before = classify_configuration(model, q_c) if classify else ""
         event = Snap(mu_c, mu_c / R, f_c / setup.force_scale, setup.force(q_new) / setup.force_scale, kind,
                      located, before, "", jump)
-        if jump >= min_jump:
+        if jump >= min_jump and snaps and segment_start is not None and mu_c - segment_start < merge_within * R:
+            # the state a snap landed in is lost again right away: in a dynamic
+            # experiment this is one snap, so merge it into the previous one
+            keep = [i for i, s in enumerate(seg) if s != segment]
+            for lst in (xs, fs, seg, negs, labels) + ((path_states,) if store_states else ()):
+                lst[:] = [lst[i] for i in keep]
+            event = snaps[-1]
+            event.force_after = setup.force(q_new) / setup.force_scale
+            event.jump = float(np.abs(x_new - model.positions(snap_start_q)).max() / R)
+            event.merged += 1
+        elif jump >= min_jump:
             segment += 1
             states[mu_c / R] = np.array(q_c)
             snaps.append(event)
+            snap_start_q = np.array(q_c)
         else:
             exchanges.append(event)
         add_point(q_new, mu_new, 0)
         event.label_after = labels[-1]
         states[mu_new / R] = q_new.copy()
+        segment_start = mu_new if jump >= min_jump else segment_start
         q, p = q_new, mu_new
         if mu_new >= dD_max:
             message = f"reached dD/R = {mu_new / R:.4g}"
@@ -681,7 +703,9 @@ def configuration_features(model: HemisphereModel, q: np.ndarray) -> dict[str, f
     on the two rods (the scissor mode of the net, closing the angle between
     the rods at the apex towards a diagonal); ``twist``: the same with equal
     senses (a rotation of the net about the vertical axis); ``lateral``: the
-    largest sideways deflection of a central rod.
+    largest sideways deflection of a central rod; ``asymmetry``: the largest
+    distance of a node from its place in the state mirrored about the x-z
+    and the y-z plane (zero for the symmetric states).
     """
     R = model.radius
     x = model.positions(q)
@@ -698,8 +722,14 @@ def configuration_features(model: HemisphereModel, q: np.ndarray) -> dict[str, f
         side = x[nodes, across] / R
         odd.append(float(np.mean(np.sign(x[nodes, along]) * side)))
         lateral = max(lateral, float(np.abs(side).max()))
+    asym = []
+    for axis in (0, 1):
+        y = x[model.mirror_map(axis)].copy()
+        y[:, axis] *= -1.0
+        asym.append(float(np.linalg.norm(x - y, axis=1).max() / R))
     return {
         "bulges": bulges,
+        "asymmetry": asym,
         "apex_height": apex_z,
         "top": float(max(tops)),
         "bottom": float(min(bottoms)),
@@ -717,8 +747,11 @@ def classify_configuration(model: HemisphereModel, q: np.ndarray, tol: float = 0
 
     * ``S``: one half of a central rod bulges up and the other half of the
       same rod bulges down, by more than ``tol`` (the asymmetric pattern);
-    * ``W``: the net is sheared, the central rods deflected sideways towards
-      one diagonal (``|shear| > tol``); it comes in two mirror images;
+    * ``W``: otherwise, when the state has lost its mirror symmetry about the
+      vertical planes through the central rods (``asymmetry > tol``): in mode I
+      the net shears, the central rods turning towards one diagonal; in
+      mode II (apex clamped) the rods wave sideways in a pinwheel. Both come in
+      mirror images;
     * otherwise symmetric: ``U+`` when the apex is the highest point of the
       central rods (within ``apex_tol``: a dome), ``O+`` when the halves bulge
       up around a dimpled apex (a ring-shaped crest), ``U-`` when the apex is
@@ -730,7 +763,7 @@ def classify_configuration(model: HemisphereModel, q: np.ndarray, tol: float = 0
     for left, right in ((b[0], b[1]), (b[2], b[3])):
         if (left > tol and right < -tol) or (left < -tol and right > tol):
             return "S"
-    if abs(f["shear"]) > tol or abs(f["twist"]) > tol:
+    if max(f["asymmetry"]) > tol:
         return "W"
     up = float(np.mean(b)) > 0
     if up:

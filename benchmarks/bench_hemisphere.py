@@ -1,0 +1,102 @@
+"""Apex indentation of the hemispherical gridshell: arc-length path against the paper's implicit Euler protocol.
+
+1. The whole mode-I curve (dD from 0 to 2R, every snap) for n rods per
+   direction at Voronoi length dl, by continuation: build, pre-stress and
+   trace times.
+2. The same path segment, dD/R from 0 to ``--segment``, computed both ways:
+   by continuation, and by the paper's protocol (implicit Euler, time step
+   1 ms, apex moved at 1 mm/s, no added damping), giving the ratio of wall
+   times. The dynamic run's force at the end of the segment is compared with
+   the static one (they should agree: the motion is quasi-static).
+
+    python benchmarks/bench_hemisphere.py [--n 11] [--dl 1.0] [--segment 0.05] [--skip-curve] [--skip-dynamic]
+
+Times are wall-clock on whatever machine runs it (the reference machine has
+2 cores shared with other work).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from shellform.gridshell.hemisphere import build_hemisphere, prestress_on_net
+from shellform.gridshell.indentation import indentation_system, trace_indentation
+
+
+def whole_curve(n, dl):
+    t0 = time.perf_counter()
+    model = build_hemisphere(n, voronoi_length=dl)
+    t1 = time.perf_counter()
+    pre = prestress_on_net(model)
+    t2 = time.perf_counter()
+    setup = indentation_system(model, pre, mode="I")
+    res = trace_indentation(setup)
+    t3 = time.perf_counter()
+    return {
+        "n": n, "voronoi_length_mm": dl * 1e3, "dof": res.n_dof, "free": res.n_free,
+        "build_s": t1 - t0, "prestress_s": t2 - t1, "trace_s": t3 - t2, "total_s": t3 - t0,
+        "success": res.success, "thresholds": [round(t, 4) for t in res.thresholds],
+        "max_force": round(res.max_force, 3), "steps": res.steps, "newton_iterations": res.newton_iterations,
+        "timings_s": {k: round(v, 2) for k, v in res.timings.items()},
+    }
+
+
+def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3):
+    from shellform.solvers.implicit_euler import implicit_euler, lumped_mass
+
+    model = build_hemisphere(n, voronoi_length=dl)
+    pre = prestress_on_net(model)
+    R = model.radius
+    d_end = x_end * R
+    # continuation over the segment
+    setup = indentation_system(model, pre, mode="I")
+    t0 = time.perf_counter()
+    res = trace_indentation(setup, dD_max=d_end)
+    t_cont = time.perf_counter() - t0
+    f_static = res.y[-1]
+    # implicit Euler: the apex moves at `speed`, the structure starts at rest in the pre-stressed state
+    setup = indentation_system(model, pre, mode="I")
+    model.network.frames.restore(setup.frames_state)
+    system = setup.system
+    mass = lumped_mass(system.structure, model.network)
+    t_end = d_end / speed
+    t0 = time.perf_counter()
+    dyn = implicit_euler(system, h, t_end, q0=pre.q, mass=mass, damping=0.0, mu=lambda t: speed * t)
+    t_dyn = time.perf_counter() - t0
+    f_dyn = setup.force(dyn.q) / setup.force_scale
+    return {
+        "segment_dD_over_R": x_end, "dof": system.n_dof,
+        "continuation_s": t_cont, "continuation_steps": res.steps,
+        "implicit_euler_s": t_dyn, "implicit_euler_steps": dyn.steps, "implicit_euler_success": dyn.success,
+        "implicit_euler_newton_iterations": int(sum(dyn.newton_iterations)),
+        "ratio_implicit_euler_over_continuation": t_dyn / t_cont,
+        "force_end_continuation": float(f_static), "force_end_implicit_euler": float(f_dyn),
+        "whole_path_implicit_euler_steps": int(round(2 * R / speed / h)),
+        "whole_path_implicit_euler_estimate_s": t_dyn * 2.0 / x_end,
+    }
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--n", type=int, default=11)
+    p.add_argument("--dl", type=float, default=1.0, help="Voronoi length [mm]")
+    p.add_argument("--segment", type=float, default=0.05, help="end of the compared segment, dD/R")
+    p.add_argument("--skip-curve", action="store_true")
+    p.add_argument("--skip-dynamic", action="store_true")
+    args = p.parse_args(argv)
+    out = {}
+    if not args.skip_curve:
+        out["mode_I_whole_curve"] = whole_curve(args.n, args.dl * 1e-3)
+        print(json.dumps(out["mode_I_whole_curve"], indent=1), flush=True)
+    if not args.skip_dynamic:
+        out["segment"] = segment(args.n, args.dl * 1e-3, args.segment)
+        print(json.dumps(out["segment"], indent=1), flush=True)
+    return out
+
+
+if __name__ == "__main__":
+    main()
