@@ -163,3 +163,23 @@ def test_bad_input_is_named():
         relax(system, scheme="euler", extra_mass=0.1)
     with pytest.raises(ModelError, match="non-finite"):
         relax(system, np.full(9, np.nan), extra_mass=0.1)
+
+
+def test_energy_change_matches_the_potential_and_its_taylor_expansion():
+    from shellform.solvers.relaxation import energy_change
+
+    system = small_net(n=5, boundary=True)
+    q = relax(system, scheme="implicit").q
+    rng = np.random.default_rng(3)
+    dq = np.zeros_like(q)
+    dq[system.free] = rng.normal(size=system.free.size)
+    # a finite change: the member-wise sum equals the difference of the totals
+    big = 1e-2 * dq
+    assert energy_change(system, q, q + big) == pytest.approx(system.energy(q + big) - system.energy(q), rel=1e-9)
+    # a tiny change: the difference of totals is round-off, the member-wise sum follows
+    # the second-order Taylor expansion g.dq + dq.K.dq / 2
+    small = 1e-9 * dq
+    g = system.residual(q)
+    K = system.tangent(q)
+    taylor = g @ small + 0.5 * small @ (K @ small)
+    assert energy_change(system, q, q + small) == pytest.approx(taylor, rel=1e-5)

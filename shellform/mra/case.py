@@ -19,7 +19,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import ModelError, SceneError
 from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
@@ -201,11 +201,13 @@ def write_meshes(out: Path, res: FormFindingResult, inv: InvertedShell, tag: str
                     {"tension": res.tension, "slack": res.slack.astype(float), "length": res.length,
                      "rest_length": net.rest_length, "family": net.family.astype(float)},
                     {"displacement": res.positions - net.structure.nodes})
-    dome = net_mesh(net, inv.positions, {"axial_force": inv.force, "length": res.length,
-                                         "family": net.family.astype(float)})
-    names = [f"hanging{tag}.vtu", f"inverted{tag}.vtu"]
+    names = [f"hanging{tag}.vtu"]
     write_mesh(out / names[0], hang)
-    write_mesh(out / names[1], dome)
+    if inv is not None:
+        dome = net_mesh(net, inv.positions, {"axial_force": inv.force, "length": res.length,
+                                             "family": net.family.astype(float)})
+        names.append(f"inverted{tag}.vtu")
+        write_mesh(out / names[1], dome)
     return names
 
 
@@ -261,8 +263,13 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
         say(f"flat start: {flat.relaxation.iterations} iterations, {flat.relaxation.wall_time_s:.3g} s; "
             f"{start_note['type']} start: {res.relaxation.iterations} iterations, "
             f"{res.relaxation.wall_time_s + prep:.3g} s with its preparation")
-    inv = invert(res)
-    summary["inverted"] = inv.summary()
+    try:
+        inv = invert(res)
+        summary["inverted"] = inv.summary()
+    except ModelError as exc:
+        inv = None
+        summary["inverted"] = {"error": str(exc)}
+        say(f"inversion skipped: {exc}")
     L = p["lengths"]
     summary["rope_lengths"] = length_statistics(res.length, float(L["tolerance"]), L["target"])
     files = []
@@ -273,7 +280,11 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
             **options, "callback": None})
         summary["length_control"] = lc.summary()
         if p["output"]["meshes"]:
-            files += write_meshes(out, lc.result, invert(lc.result), tag="_length_control")
+            try:
+                lc_inv = invert(lc.result)
+            except ModelError:
+                lc_inv = None
+            files += write_meshes(out, lc.result, lc_inv, tag="_length_control")
         say(f"length control: conforming ropes per round {lc.n_conforming}")
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t0

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..assembly import System, build_system
+from ..errors import ModelError
 from ..model import Structure
 from .formfind import FormFindingResult
 
@@ -101,6 +102,13 @@ def invert(result: FormFindingResult, plane_z: float | None = None) -> InvertedS
     # bars that carry -T in the mirrored shape: EA (l - L0) / L0 = -T
     tension, length = result.tension, result.length
     EA = net.EA
+    bad = np.flatnonzero(tension >= EA)
+    if bad.size:
+        k = int(bad[0])
+        raise ModelError(
+            f"inversion: rope {k} carries {tension[k]:.4g} N >= EA = {EA[k]:.4g} N (strain over 100 %); no bar can "
+            "carry that compression - the hanging state is not a converged net of nearly inextensible ropes"
+        )
     rest = length / (1.0 - tension / EA)
     shell.add_bars(net.rope_edges, EA=EA, rest_length=rest, name="members")
     mask = hang.constrained_mask[: 3 * hang.n_nodes]

@@ -743,19 +743,22 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
     m = st.m
     h_max = 1e12 * np.sqrt(st.L_ref / st.g_ref)
 
-    def evaluate(qq):
+    def residual(qq):
         mon.n_res += 1
-        return system.energy(qq, lam), system.residual(qq, lam)[free]
+        return system.residual(qq, lam)[free]
 
-    E, r = evaluate(q)
+    r = residual(q)
     v = np.zeros(free.size)
     K = None
     vmax, amax, rnorm = mon.measure(v, r)
-    f_scale = max(float(np.linalg.norm(system.external_force(lam)[free])), rnorm, 1e-300)
+    f_ext = system.external_force(lam)
+    f_scale = max(float(np.linalg.norm(f_ext[free])), rnorm, 1e-300)
+    # changes of the potential below this are round-off (work of the loads over one ulp of the positions)
+    e_floor = 1e3 * np.finfo(float).eps * float(np.abs(f_ext).sum()) * max(st.L_ref, float(np.abs(q).max()))
     tries = 0
     while True:
-        if not (np.isfinite(E) and np.isfinite(rnorm)):
-            return q, h, v, False, f"the potential is not finite at iteration {total['it']}", np.nan, np.nan, np.nan
+        if not np.isfinite(rnorm):
+            return q, h, v, False, f"the residual is not finite at iteration {total['it']}", np.nan, np.nan, np.nan
         if vmax <= v_tol and amax <= a_tol:
             return q, h, v, True, _converged_message(mon, total["it"], vmax, amax), vmax, amax, rnorm
         if total["it"] >= max_it:
@@ -787,21 +790,19 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
             tries += 1
             continue
         pred = slope + 0.5 * float(p @ (K @ p))
-        # the potential is trusted down to round-off in E; below that, the residual decides
-        tiny = abs(pred) <= 1e-11 * max(abs(E), 1e-300)
-        alpha, E_try, r_try = _line_search(evaluate, q, free, p, E, slope, rnorm, tiny)
+        tiny = abs(pred) <= e_floor
+        alpha, dE, r_try = _line_search(system, lam, residual, q, free, p, slope, rnorm, tiny)
         if alpha == 0.0:
             mon.rejected += 1
             h *= 0.25
             tries += 1
             continue
         tries = 0
-        dE = E_try - E
         rho = dE / pred if (pred < 0 and alpha == 1.0) else 0.5
         v = alpha * p / h
         q = q.copy()
         q[free] += alpha * p
-        E, r = E_try, r_try
+        r = r_try
         K = None
         total["t"] += h
         total["it"] += 1
@@ -809,7 +810,8 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
             h = min(4.0 * h, h_max)
         elif alpha < 0.1:
             h *= 0.25
-        elif alpha < 0.5 or rho < 0.25:
+        elif rho < 0.25:
+            # a partial step is progress; only a poor quadratic model shortens the pseudo step
             h *= 0.5
         vmax, amax, rnorm = mon.measure(v, r)
         stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm)
@@ -817,55 +819,85 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
             return q, h, v, False, stop, vmax, amax, rnorm
 
 
-def _line_search(evaluate, q, free, p, E0, slope, rnorm0, tiny, max_eval=12):
+def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> float:
+    """``Pi(q1) - Pi(q0)`` summed member by member, without the cancellation of two totals.
+
+    The total potential is dominated by the work of the weight, so the
+    difference of two totals loses the small changes a converging relaxation
+    makes. For axial members the change of ``1/2 k d^2`` (``d`` the extension)
+    uses ``l1 - l0 = (x1 - x0) . (x1 + x0) / (l1 + l0)`` of the member vectors;
+    constant forces contribute ``-f . (q1 - q0)``; other effects the
+    difference of their energies.
+    """
+    dq = q1 - q0
+    total = 0.0
+    for e in system.effects:
+        factor = lam if e.scales_with_load else 1.0
+        if e.is_external and hasattr(e, "force"):
+            total -= factor * float(e.force @ dq)
+        elif all(hasattr(e, a) for a in ("conn", "EA", "L", "dofs", "_active")):
+            x0 = q0[e.dofs[:, 3:]] - q0[e.dofs[:, :3]]
+            dx = dq[e.dofs[:, 3:]] - dq[e.dofs[:, :3]]
+            x1 = x0 + dx
+            l0 = np.sqrt(np.einsum("ij,ij->i", x0, x0))
+            l1 = np.sqrt(np.einsum("ij,ij->i", x1, x1))
+            a0, a1 = e._active(l0), e._active(l1)
+            d0 = np.where(a0, l0 - e.L, 0.0)
+            d1 = np.where(a1, l1 - e.L, 0.0)
+            dl = np.einsum("ij,ij->i", dx, x0 + x1) / np.maximum(l0 + l1, 1e-300)
+            diff = np.where(a0 & a1, dl, d1 - d0)
+            total += factor * 0.5 * float(np.sum((e.EA / e.L) * diff * (d1 + d0)))
+        else:
+            total += factor * (e.energy(q1) - e.energy(q0))
+    return total
+
+
+def _line_search(system, lam, residual, q, free, p, slope, rnorm0, tiny, max_eval=12):
     """Step length along ``p`` for the convex potential ``phi(a) = Pi(q + a p)``.
 
     The full step is taken when it lowers the potential enough (Armijo) or, at
     round-off level (``tiny``), lowers the residual. Otherwise the minimiser of
     ``phi`` on ``(0, 1)`` is located by regula falsi on ``phi'(a) = r(q + a p) . p``
-    (increasing, since ``phi`` is convex). Returns ``(alpha, E, r)``; alpha 0
-    means no decrease was found.
+    (increasing, since ``phi`` is convex). Returns ``(alpha, phi(alpha) - phi(0), r)``;
+    alpha 0 means no decrease was found.
     """
     def at(a):
         qq = q.copy()
         qq[free] += a * p
-        E, r = evaluate(qq)
-        return E, r, float(r @ p)
+        r = residual(qq)
+        return energy_change(system, q, qq, lam), r, float(r @ p)
 
-    E1, r1, d1 = at(1.0)
-    if np.isfinite(E1) and np.all(np.isfinite(r1)):
-        if tiny:
-            if float(np.linalg.norm(r1)) < rnorm0:
-                return 1.0, E1, r1
-        elif E1 - E0 <= 1e-4 * slope or (d1 <= 0.0 and E1 < E0):
-            return 1.0, E1, r1
-    if tiny:
-        return 0.0, E0, None
+    dE1, r1, d1 = at(1.0)
+    if np.isfinite(dE1) and np.all(np.isfinite(r1)):
+        if dE1 <= 1e-4 * slope or (d1 <= 0.0 and dE1 < 0.0):
+            return 1.0, dE1, r1
+        if tiny and float(np.linalg.norm(r1)) < rnorm0:
+            return 1.0, dE1, r1
     # bracket [lo, hi] with phi'(lo) < 0 < phi'(hi)
     lo, dlo = 0.0, slope
     hi, dhi = 1.0, d1 if np.isfinite(d1) else np.inf
-    best = (0.0, E0, None)
+    best = (0.0, 0.0, None)
     for _ in range(max_eval):
         if np.isfinite(dhi):
             a = hi - dhi * (hi - lo) / (dhi - dlo)
             a = min(max(a, lo + 0.05 * (hi - lo)), hi - 0.05 * (hi - lo))
         else:
             a = 0.5 * (lo + hi)
-        Ea, ra, da = at(a)
-        if not (np.isfinite(Ea) and np.isfinite(da)):
+        dEa, ra, da = at(a)
+        if not (np.isfinite(dEa) and np.isfinite(da)):
             hi, dhi = a, np.inf
             continue
-        if Ea < best[1]:
-            best = (a, Ea, ra)
-        if abs(da) <= 0.1 * abs(slope) and Ea < E0:
-            return a, Ea, ra
+        if dEa < best[1]:
+            best = (a, dEa, ra)
+        if abs(da) <= 0.1 * abs(slope) and dEa < 0.0:
+            return a, dEa, ra
         if da < 0:
             lo, dlo = a, da
         else:
             hi, dhi = a, da
-    if best[0] > 0 and best[1] <= E0 + 1e-4 * best[0] * slope:
+    if best[0] > 0 and best[1] <= 1e-4 * best[0] * slope:
         return best
-    return 0.0, E0, None
+    return 0.0, 0.0, None
 
 
 def _diagonal_positions(A: sp.csr_matrix) -> np.ndarray:

@@ -1,0 +1,71 @@
+"""Run the MRA scenes of this folder and tabulate their summaries.
+
+Each ``*.toml`` here is one case for :func:`shellform.mra.run_mra_case`; results go to
+``results/<name>/`` (``hanging.vtu``, ``inverted.vtu``, ``summary.json``) and the table of
+all cases to ``results/cases.md``.
+
+Run:  python validation/mra/run_cases.py [scene.toml ...]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # many small BLAS calls: threads only add overhead
+
+import sys  # noqa: E402
+import tomllib  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from shellform.mra import run_mra_case  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+
+
+def main(paths) -> list[dict]:
+    rows = []
+    for path in paths:
+        params = tomllib.loads(Path(path).read_text())
+        out = HERE / "results" / params.get("name", Path(path).stem)
+        print(f"== {path}")
+        s = run_mra_case(params, out, progress=lambda msg: None if msg.startswith("  ") else print(msg))
+        rows.append(s)
+        st = s["start"]
+        saved = ""
+        if "flat" in st:
+            saved = (f"flat start {st['flat']['iterations']} it. / {st['flat']['wall_time_s']:.2f} s, "
+                     f"{st['type']} start {st['iterations']} it. / {st['wall_time_s'] + st.get('preparation_s', 0):.2f} s")
+        print(f"   converged {s['converged']}, {s['iterations']} iterations, max velocity {s['max_velocity']:.2e}, "
+              f"max acceleration {s['max_acceleration']:.2e}, slack ropes {s['n_slack_ropes']}/{s['n_ropes']}, "
+              f"rise {s['rise']:.3f} m, residual/weight {s['residual_over_weight']:.1e}, {s['wall_time_s']:.2f} s")
+        if saved:
+            print("   " + saved)
+    lines = ["| case | nodes | ropes | scheme | converged | iterations | max v [m/s] | max a [m/s^2] | slack | rise [m] "
+             "| residual/weight | lengths min/mean/max [m] | length classes (within tol) | D.o.F / D.o.C | start comparison | time [s] |",
+             "|" + "---|" * 16]
+    for s in rows:
+        L = s["rope_lengths"]
+        h = s["hypostatic"]
+        st = s["start"]
+        cmp = "-"
+        if "flat" in st:
+            cmp = (f"flat {st['flat']['iterations']} it./{st['flat']['wall_time_s']:.2f} s vs {st['type']} "
+                   f"{st['iterations']} it./{st['wall_time_s'] + st.get('preparation_s', 0):.2f} s")
+        lines.append(
+            f"| {s['name']} | {s['n_nodes']} | {s['n_ropes']} | {s['scheme']} | {s['converged']} | {s['iterations']} "
+            f"| {s['max_velocity']:.1e} | {s['max_acceleration']:.1e} | {s['n_slack_ropes']} | {s['rise']:.3f} "
+            f"| {s['residual_over_weight']:.1e} | {L['min']:.3f}/{L['mean']:.3f}/{L['max']:.3f} | {L['n_classes']} "
+            f"| {h['dof']} / {h['doc']} | {cmp} | {s['wall_time_s']:.2f} |")
+        if "length_control" in s:
+            lc = s["length_control"]
+            lines.append(f"|  ... length control ({lc['n_classes']} classes) | | | | {lc['converged']} | | | | | | | "
+                         f"conforming per round {lc['n_conforming_per_round']} of {s['n_ropes']} | | | | "
+                         f"{lc['wall_time_s']:.2f} |")
+    (HERE / "results").mkdir(exist_ok=True)
+    (HERE / "results" / "cases.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return rows
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or sorted(HERE.glob("*.toml")))
