@@ -478,6 +478,9 @@ def trace_indentation(
     max_steps: int = 3000,
     rtol: float = 1e-9,
     snap_method: str = "dynamic",
+    snap_time_step: float = 1.0e-3,
+    snap_damping: float = 100.0,
+    min_drop: float = 0.05,
     classify: bool = True,
     store_states: bool = False,
     progress: Callable[[float, float, int], None] | None = None,
@@ -515,6 +518,13 @@ def trace_indentation(
         How the stable state after a critical point is found: damped
         implicit Euler dynamics then Newton (the paper's physics), or a pure
         energy descent (faster, but it can creep along flat valleys).
+    snap_time_step, snap_damping : float
+        Time step [s] and mass-proportional damping [1/s] of the dynamics
+        through a snap. Lighter damping lets a snap run on further (past
+        shallow stable states).
+    min_drop : float
+        A loss of stability counts as a snap only when the force also changes
+        by at least this fraction.
     classify : bool
         Label every point's configuration.
     store_states : bool
@@ -618,7 +628,8 @@ def trace_indentation(
         for factor in (1.0, 4.0, 16.0):
             model.network.frames.restore(frames)
             mu_new = min(mu_c + factor * snap_offset * R, dD_max)
-            q_new, its, why = _settle(setup, q_c, mu_new, mode_free, push, method=snap_method)
+            q_new, its, why = _settle(setup, q_c, mu_new, mode_free, push, method=snap_method,
+                                      time_step=snap_time_step, damping=snap_damping)
             totals["newton"] += its
             if q_new is not None:
                 break
@@ -632,6 +643,9 @@ def trace_indentation(
         before = classify_configuration(model, q_c) if classify else ""
         event = Snap(mu_c, mu_c / R, f_c / setup.force_scale, setup.force(q_new) / setup.force_scale, kind,
                      located, before, "", jump)
+        f_new = setup.force(q_new)
+        if abs(f_new - f_c) < min_drop * max(abs(f_c), 1e-3 * setup.force_scale):
+            jump = min(jump, 0.0)  # no force drop: the path goes on smoothly, not a snap
         if jump >= min_jump and snaps and segment_start is not None and mu_c - segment_start < merge_within * R:
             # the state a snap landed in is lost again right away: in a dynamic
             # experiment this is one snap, so merge it into the previous one
