@@ -28,7 +28,11 @@ def draw_gridshell(ax, model: HemisphereModel, q: np.ndarray, highlight: bool = 
     ax.set_xlim(-1.3, 1.3)
     ax.set_ylim(-1.3, 1.3)
     ax.set_zlim(-1.3, 1.3)
-    ax.set_box_aspect((1, 1, 1))
+    try:
+        ax.set_box_aspect((1, 1, 0.75), zoom=1.5)
+    except TypeError:  # matplotlib < 3.6 has no zoom
+        ax.set_box_aspect((1, 1, 0.75))
+    ax.set_zlim(-1.1, 1.1)
     ax.set_axis_off()
 
 
@@ -48,13 +52,14 @@ def draw_profiles(ax, model: HemisphereModel, q: np.ndarray) -> None:
 def render_states(path, model: HemisphereModel, states: Sequence[tuple[str, np.ndarray]], dpi: int = 110) -> None:
     """One column per state: 3D view above, central-rod side views below, titled."""
     k = len(states)
-    fig, plt = _figure(figsize=(2.6 * k, 5.2))
+    fig, plt = _figure(figsize=(2.8 * k, 5.6))
+    grid = fig.add_gridspec(2, k, height_ratios=(1.5, 1.0))
     for i, (title, q) in enumerate(states):
-        ax = fig.add_subplot(2, k, i + 1, projection="3d")
+        ax = fig.add_subplot(grid[0, i], projection="3d")
         ax.view_init(elev=22, azim=-60)
         draw_gridshell(ax, model, q)
         ax.set_title(title, fontsize=9)
-        ax2 = fig.add_subplot(2, k, k + i + 1)
+        ax2 = fig.add_subplot(grid[1, i])
         draw_profiles(ax2, model, q)
         if i == 0:
             ax2.legend(fontsize=7, loc="lower left")

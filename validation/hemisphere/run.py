@@ -13,7 +13,8 @@ unless ``--force``):
 * ``convergence``: n in {5, 11}, both modes, Voronoi lengths 2.0, 1.5, 1.0, 0.5 mm;
 * ``routes``: the two construction routes (paths from the plane, relaxation on the net);
 * ``sensitivity``: n = 5, imperfection size and seed, penalty against shared joints;
-* ``dense``: n = 19 (and larger when asked with ``--dense``), both modes.
+* ``dense``: n = 19 (and larger when asked with ``--dense``), both modes;
+* ``render``: recompute the four cases with configuration pictures (n = 5, 11 at 1 mm).
 
 Writes ``report.md``, ``validation.json`` and the figures next to this file.
 """
@@ -102,6 +103,11 @@ def studies(which, force, dense_ns):
             for mode in MODES:
                 for dl in DLS_MM:
                     run_indentation(n, mode, dl, force)
+    if which == "render":
+        # the snapshot pictures only: the four cases that have them, recomputed
+        for mode in MODES:
+            for n in (5, 11):
+                run_indentation(n, mode, 1.0, True)
     if which in ("dense", "all"):
         for n in dense_ns:
             for mode in MODES:
@@ -462,7 +468,7 @@ NOTES = [
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--study", default="all", choices=("all", "main", "convergence", "routes", "sensitivity", "dense"))
+    p.add_argument("--study", default="all", choices=("all", "main", "convergence", "routes", "sensitivity", "dense", "render"))
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--force", action="store_true", help="recompute stored runs")
     p.add_argument("--dense", default="19", help="comma-separated dense n values (default 19)")
