@@ -169,3 +169,20 @@ def test_case_input_errors_name_the_key(tmp_path):
         run_mra_case({**good, "solver": {"schem": "rk4"}}, tmp_path)
     with pytest.raises(SceneError, match="start.depth"):
         run_mra_case({**good, "start": {"type": "nurbs"}}, tmp_path)
+
+
+def test_case_on_a_bspline_surface_grid(tmp_path):
+    g = np.linspace(0.0, 6.0, 4)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    Z = 1.5 * np.sin(np.pi * X / 6.0) * np.sin(np.pi * Y / 6.0)  # a bump: the grid's reference surface
+    params = {
+        "geometry": {"type": "bspline", "control_points": np.stack([X, Y, Z], axis=-1).tolist(), "n_i": 6, "n_j": 6},
+        "supports": {"groups": ["corners"]},
+        "ropes": {"slack": 0.02},
+        "output": {"meshes": False},
+    }
+    s = run_mra_case(params, tmp_path)
+    assert s["converged"] and s["n_nodes"] == 49 and s["n_ropes"] == 84
+    assert s["hypostatic"]["n_A"] == 4
+    # the ropes remember the curved surface: rest lengths differ from the flat spacing of 1 m
+    assert s["rope_lengths"]["max"] > 1.05

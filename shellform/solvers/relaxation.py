@@ -687,6 +687,8 @@ def _continuation_scales(system, st, lam) -> list[float]:
     The first stage makes the ropes soft enough to stretch about 10 % under an
     estimate of the rope tension (the largest nodal load times the number of
     ropes across the net, over four); each later stage is ten times stiffer.
+    When most ropes are already taut at the start, the first stage is the one
+    whose expected strain matches their median strain.
     """
     axial = _axial_effects(system)
     if not axial:
@@ -698,6 +700,13 @@ def _continuation_scales(system, st, lam) -> list[float]:
     if tension <= 0:
         return [1.0]
     s0 = 10.0 * tension / float(np.median(EA))
+    # A start that already hangs (most ropes taut, e.g. on a surface close to the
+    # shape) skips the stages softer than its own rope strains: a soft stage would
+    # only stretch the net away from where it starts.
+    strain = np.concatenate([(e._geometry(st.q)[1] - e.L) / e.L for e in axial])
+    taut = strain > 0
+    if taut.mean() >= 0.5:
+        s0 = max(s0, 0.1 * s0 / max(float(np.median(strain[taut])), 1e-12))
     if s0 >= 0.1:
         return [1.0]
     scales = []
