@@ -520,7 +520,7 @@ class _Monitor:
         return None
 
     def finish(self, q_free, v_free, success, message, it, t, h, vmax, amax, rnorm):
-        q = self._q_template.copy()
+        q = self.st.q.copy()  # constrained DOFs at their prescribed values
         q[self.system.free] = q_free
         v = np.zeros(self.system.n_dof)
         v[self.system.free] = v_free
@@ -559,7 +559,6 @@ def _explicit_step_size(system, st, dt, scheme):
 
 def _run_rk4(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0):
     mon = _Monitor(system, st, "rk4", lam, callback, every, t0, max_wall)
-    mon._q_template = st.q.copy()
     h = _explicit_step_size(system, st, dt, "rk4")
     free = system.free
     q = st.q.copy()
@@ -609,7 +608,6 @@ def _limit_message(mon, it, vmax, amax):
 
 def _run_kinetic(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0):
     mon = _Monitor(system, st, "kinetic", lam, callback, every, t0, max_wall)
-    mon._q_template = st.q.copy()
     h = _explicit_step_size(system, st, dt, "kinetic")
     free = system.free
     q = st.q.copy()
@@ -718,7 +716,6 @@ def _continuation_scales(system, st, lam) -> list[float]:
 
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
-    mon._q_template = st.q.copy()
     free = system.free
     solver = _SPDSolve(linear_solver, free.size)
     scales = _continuation_scales(system, st, lam) if continuation else [1.0]
