@@ -286,7 +286,10 @@ class _SPDSolve:
     A factorisation is kept from step to step: the next system is first solved
     by conjugate gradients preconditioned with the old factor (a few cheap
     iterations while the tangent changes little), and refactorised only when
-    that does not converge within ``cg_max`` iterations.
+    that does not converge within ``cg_max`` iterations. By default
+    ``cg_max`` follows the measured costs: half as many iterations as one
+    factorisation costs in preconditioned iterations (between 5 and 60), so
+    a failed attempt never costs more than half a factorisation.
 
     ``"ldl"`` keeps one QDLDL object and refactorises numerically on the same
     pattern (the ordering and symbolic analysis are done once). ``"amg"`` uses
@@ -295,7 +298,7 @@ class _SPDSolve:
     :func:`shellform.solvers.linear.factorize`.
     """
 
-    def __init__(self, method: str, n: int, reuse: bool = True, cg_max: int = 10):
+    def __init__(self, method: str, n: int, reuse: bool = True, cg_max: int | None = None):
         if method == "auto":
             method = "ldl" if n <= 300_000 else "amg"
         self.method = method
@@ -307,9 +310,20 @@ class _SPDSolve:
         self._ready = False
         self.factorizations = 0
         self.cg_iterations = 0
+        self._t_factor = None
+        self._t_iteration = None
+
+    @property
+    def iteration_budget(self) -> int:
+        if self.cg_max is not None:
+            return int(self.cg_max)
+        if self._t_factor is None or not self._t_iteration:
+            return 10
+        return int(np.clip(0.5 * self._t_factor / self._t_iteration, 5, 60))
 
     def _factorize(self, A: sp.csr_matrix) -> None:
         self._ready = False
+        t0 = time.perf_counter()
         if self.method == "ldl":
             import qdldl
 
@@ -334,6 +348,7 @@ class _SPDSolve:
             self._factor = factorize(A, self.method)
         self.factorizations += 1
         self._ready = True
+        self._t_factor = time.perf_counter() - t0
 
     def _precondition(self, b: np.ndarray) -> np.ndarray:
         if self.method == "ldl":
@@ -345,8 +360,11 @@ class _SPDSolve:
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray:
         """Solve ``A x = b`` to relative residual ``rtol`` (or exactly after a refactorisation)."""
         if self.reuse and self._ready:
-            x, ok, its = _pcg(A, b, self._precondition, rtol, self.cg_max)
+            t0 = time.perf_counter()
+            x, ok, its = _pcg(A, b, self._precondition, rtol, self.iteration_budget)
             self.cg_iterations += its
+            if its:
+                self._t_iteration = (time.perf_counter() - t0) / its
             if ok:
                 return x
         self._factorize(A)
