@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from test_continuation_models import (
-    ALPHA, EA, H, L, LS, P_CR, THETA_CR, braced_critical, braced_truss, load_of_deflection, spring_truss,
+    H, L, LS, P_CR, THETA_CR, braced_critical, braced_truss, load_of_deflection, spring_truss,
     truss_load, von_mises,
 )
 
