@@ -10,6 +10,7 @@
    the static one (they should agree: the motion is quasi-static).
 
     python benchmarks/bench_hemisphere.py [--n 11] [--dl 1.0] [--segment 0.05] [--skip-curve] [--skip-dynamic]
+                                          [--json validation/hemisphere/benchmark.json]
 
 Times are wall-clock on whatever machine runs it (the reference machine has
 2 cores shared with other work).
@@ -87,6 +88,7 @@ def main(argv=None):
     p.add_argument("--segment", type=float, default=0.05, help="end of the compared segment, dD/R")
     p.add_argument("--skip-curve", action="store_true")
     p.add_argument("--skip-dynamic", action="store_true")
+    p.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = p.parse_args(argv)
     out = {}
     if not args.skip_curve:
@@ -95,6 +97,12 @@ def main(argv=None):
     if not args.skip_dynamic:
         out["segment"] = segment(args.n, args.dl * 1e-3, args.segment)
         print(json.dumps(out["segment"], indent=1), flush=True)
+    if args.json:
+        import platform
+
+        out["machine"] = {"platform": platform.platform(), "python": platform.python_version()}
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=1)
     return out
 
 

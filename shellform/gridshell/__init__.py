@@ -17,8 +17,10 @@ from .indentation import (
     configuration_features,
     count_negative,
     indentation_system,
+    smallest_eigenpair,
     trace_indentation,
 )
+from .study import construction_case, indentation_case
 
 __all__ = [
     "PAPER",
@@ -35,5 +37,8 @@ __all__ = [
     "configuration_features",
     "count_negative",
     "indentation_system",
+    "smallest_eigenpair",
     "trace_indentation",
+    "construction_case",
+    "indentation_case",
 ]

@@ -21,11 +21,18 @@ bifurcation where the branch loses stability. There the structure snaps to
 another stable state at the same ``dD``. :func:`trace_indentation` does
 exactly this: it traces the stable branch with arc-length continuation,
 stops at the first point with a negative eigenvalue, locates the critical
-point (the snapping threshold), then finds the stable state beyond it by
-descending the energy from the critical state pushed along its critical
-mode, and continues from there. Small random dead forces (an
-imperfection) break the symmetry of the net as in the paper; without them the
-symmetry is broken only by the critical mode chosen at each snap.
+point (the snapping threshold), then finds the stable state beyond it: the
+critical state is pushed along its critical mode and carried downhill by
+damped implicit Euler dynamics (the paper's own integrator) and Newton, and
+the path continues from there. Small random dead forces (an imperfection)
+break the symmetry of the net as in the paper; without them the symmetry is
+broken only by the critical mode chosen at each snap.
+
+Stability is counted here from the pivot signs of an LDL^T factorisation
+(:func:`count_negative`), and critical modes come from shift-invert Lanczos
+about zero (:func:`smallest_eigenpair`): rod tangents in SI units span twelve
+orders of magnitude, which the general-purpose tools of
+:mod:`shellform.solvers.stability` treat as untrustworthy or shift past.
 """
 
 from __future__ import annotations
@@ -41,8 +48,8 @@ from ..assembly import System
 from ..effects.loads import ConstantForce
 from ..errors import ModelError
 from ..solvers.continuation import trace_path
-from ..solvers.newton import solve_static
 from ..solvers.linear import SingularMatrixError
+from ..solvers.newton import solve_static
 from ..solvers.stability import InertiaError, LDLFactor, critical_modes, inertia
 from .hemisphere import HemisphereModel, PrestressResult
 
@@ -406,7 +413,18 @@ def _settle(setup: IndentationSetup, q0: np.ndarray, mu: float, mode_free: np.nd
             trans = np.abs(d[:n_x]).max()
             if trans > 0:
                 q = q + amplitude * setup.model.radius * d / trans
-        if method == "dynamic":
+        if method == "auto":
+            # a plain energy descent first; damped dynamics only when it stalls
+            frames = setup.model.network.frames.state()
+            res = solve_static(system, q, mu=mu, merit="energy", max_iter=30, rtol=1e-9)
+            iterations += res.iterations
+            if res.success and count_negative(system.tangent_free(res.q)) == 0:
+                system.accept(res.q)
+                return res.q, iterations, "stable"
+            setup.model.network.frames.restore(frames)
+            q, its = _dynamic_step_out(setup, q, mu, time_step, damping, t_max)
+            iterations += its
+        elif method == "dynamic":
             q, its = _dynamic_step_out(setup, q, mu, time_step, damping, t_max)
             iterations += its
         # descend in rounds, accepting the state in between: a snap can turn rod
@@ -514,14 +532,15 @@ def trace_indentation(
         Accuracy in ``dD / R`` to which a bifurcation is located.
     max_snaps : int
         Stop after this many losses of stability.
-    snap_method : {"dynamic", "energy"}
+    snap_method : {"dynamic", "energy", "auto"}
         How the stable state after a critical point is found: damped
-        implicit Euler dynamics then Newton (the paper's physics), or a pure
-        energy descent (faster, but it can creep along flat valleys).
+        implicit Euler dynamics then Newton (the paper's physics), a pure
+        energy descent (it can creep along flat valleys), or the descent
+        first and the dynamics when it stalls.
     snap_time_step, snap_damping : float
         Time step [s] and mass-proportional damping [1/s] of the dynamics
-        through a snap. Lighter damping lets a snap run on further (past
-        shallow stable states).
+        through a snap (with a 1 ms step the scheme itself dissipates most
+        of the motion, so the damping hardly changes where a snap lands).
     min_drop : float
         A loss of stability counts as a snap only when the force also changes
         by at least this fraction.
