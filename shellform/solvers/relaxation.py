@@ -65,7 +65,15 @@ _LEAPFROG_LIMIT = 2.0
 
 @dataclass
 class RelaxationProgress:
-    """What a progress callback receives."""
+    """What a progress callback receives.
+
+    ``q`` and ``v`` are the current state (all DOFs, copies the callback may
+    keep): saving ``q`` is a checkpoint. The equilibrium is the minimum of a
+    convex potential, so ``relax(system, q0=saved_q)`` (for the explicit
+    schemes also ``v0=saved_v`` to continue the same trajectory) reaches the
+    same shape as an uninterrupted run. For the implicit scheme ``v`` is the
+    last pseudo step over its pseudo time step, and a restart ignores it.
+    """
 
     scheme: str
     iteration: int
@@ -74,6 +82,8 @@ class RelaxationProgress:
     max_acceleration: float
     residual_norm: float
     wall_time_s: float
+    q: np.ndarray | None = None
+    v: np.ndarray | None = None
 
 
 @dataclass
@@ -210,9 +220,23 @@ class _Setup:
     a_tol: float
     damping: float
     a_tol_asked: float
+    v0: np.ndarray  # start velocity at the free DOFs
 
 
-def _setup(system, q0, lam, mu, extra_mass, rtol, v_tol, a_tol, damping) -> _Setup:
+def _start_velocity(system, v0) -> np.ndarray:
+    """Start velocity at the free DOFs (zero by default), checked."""
+    if v0 is None:
+        return np.zeros(system.free.size)
+    v0 = np.asarray(v0, dtype=float)
+    if v0.shape != (system.n_dof,):
+        raise ModelError(f"relaxation: v0 must have one value per DOF ({system.n_dof}), got shape {v0.shape}")
+    if not np.all(np.isfinite(v0)):
+        bad = int(np.flatnonzero(~np.isfinite(v0))[0])
+        raise ModelError(f"relaxation: the start velocity has a non-finite value at DOF {bad} (node {bad // 3})")
+    return v0[system.free].copy()
+
+
+def _setup(system, q0, lam, mu, extra_mass, rtol, v_tol, a_tol, damping, v0=None) -> _Setup:
     s = system.structure
     if system.n_dof != 3 * s.n_nodes:
         raise ModelError(
@@ -257,7 +281,7 @@ def _setup(system, q0, lam, mu, extra_mass, rtol, v_tol, a_tol, damping) -> _Set
     damping = 2.0 * np.sqrt(g_ref / L_ref) if damping is None else float(damping)
     if damping < 0 or not np.isfinite(damping):
         raise ModelError(f"relaxation: damping must be finite and non-negative, got {damping}")
-    return _Setup(q, m_node, m, g_ref, L_ref, v_tol, a_tol, damping, a_tol_asked)
+    return _Setup(q, m_node, m, g_ref, L_ref, v_tol, a_tol, damping, a_tol_asked, _start_velocity(system, v0))
 
 
 def stable_time_step(system, q=None, extra_mass=None, scheme: str = "rk4", damping: float = 0.0) -> float:
@@ -427,6 +451,7 @@ def relax(
     q0: np.ndarray | None = None,
     *,
     scheme: str = "implicit",
+    v0: np.ndarray | None = None,
     lam: float = 1.0,
     mu: float = 0.0,
     extra_mass=None,
@@ -452,8 +477,13 @@ def relax(
     q0 : ndarray, optional
         Start state (all DOFs); the reference configuration by default (the
         flat planform). Constrained DOFs are set to their prescribed values.
+        A ``q`` saved from a :class:`RelaxationProgress` resumes a run.
     scheme : {"implicit", "rk4", "kinetic"}
         See the module docstring.
+    v0 : ndarray, optional
+        Start velocity of every DOF (explicit schemes; default rest). With the
+        ``q`` and ``v`` of a :class:`RelaxationProgress` an explicit run
+        continues on the same trajectory. The implicit scheme starts from rest.
     lam, mu : float
         Load factor and prescribed-displacement parameter.
     extra_mass : float or array_like, optional
@@ -497,7 +527,7 @@ def relax(
     if scheme not in SCHEMES:
         raise ModelError(f"relaxation: unknown scheme {scheme!r}; expected one of {SCHEMES}")
     t0 = time.perf_counter()
-    st = _setup(system, q0, lam, mu, extra_mass, rtol, velocity_tol, acceleration_tol, damping)
+    st = _setup(system, q0, lam, mu, extra_mass, rtol, velocity_tol, acceleration_tol, damping, v0)
     if progress_every is None:
         progress_every = 1 if scheme == "implicit" else 2000
     if max_iterations is None:
@@ -530,13 +560,20 @@ class _Monitor:
     def converged(self, vmax, amax) -> bool:
         return vmax <= self.st.v_tol and amax <= self.st.a_tol
 
-    def tick(self, it, t, vmax, amax, rnorm) -> str | None:
-        """Record, call back; return a reason to stop, if any."""
+    def full(self, x_free, base=None):
+        """A vector over all DOFs: ``x_free`` at the free ones, ``base`` (or zero) elsewhere."""
+        out = np.zeros(self.system.n_dof) if base is None else base.copy()
+        out[self.system.free] = x_free
+        return out
+
+    def tick(self, it, t, vmax, amax, rnorm, q_free, v_free) -> str | None:
+        """Record, call back with the current state; return a reason to stop, if any."""
         if it % self.every == 0:
             for k, val in zip(self.history, (it, vmax, amax, rnorm)):
                 self.history[k].append(val)
             if self.callback is not None:
-                info = RelaxationProgress(self.scheme, it, t, vmax, amax, rnorm, time.perf_counter() - self.t0)
+                info = RelaxationProgress(self.scheme, it, t, vmax, amax, rnorm, time.perf_counter() - self.t0,
+                                          q=self.full(q_free, self.st.q), v=self.full(v_free))
                 if self.callback(info):
                     return f"stopped by the progress callback after {it} iterations"
         if self.max_wall_time is not None and time.perf_counter() - self.t0 > self.max_wall_time:
@@ -544,10 +581,8 @@ class _Monitor:
         return None
 
     def finish(self, q_free, v_free, success, message, it, t, h, vmax, amax, rnorm):
-        q = self.st.q.copy()  # constrained DOFs at their prescribed values
-        q[self.system.free] = q_free
-        v = np.zeros(self.system.n_dof)
-        v[self.system.free] = v_free
+        q = self.full(q_free, self.st.q)  # constrained DOFs at their prescribed values
+        v = self.full(v_free)
         return RelaxationResult(
             q=q, v=v, success=success, message=message, scheme=self.scheme, iterations=it,
             max_velocity=vmax, max_acceleration=amax, residual_norm=rnorm,
@@ -596,7 +631,7 @@ def _run_rk4(system, st, lam, dt, max_it, max_wall, linear_solver, callback, eve
         return (-r - c * m * vf) / m, r
 
     qf = st.q[free].copy()
-    vf = np.zeros_like(qf)
+    vf = st.v0.copy()
     qf_prev, vf_prev = qf, vf
     t = 0.0
     vmax = amax = rnorm = np.nan
@@ -609,7 +644,7 @@ def _run_rk4(system, st, lam, dt, max_it, max_wall, linear_solver, callback, eve
             return mon.finish(qf, vf, True, _converged_message(mon, it, vmax, amax), it, t, h, vmax, amax, rnorm)
         if it == max_it:
             break
-        stop = mon.tick(it, t, vmax, amax, rnorm)
+        stop = mon.tick(it, t, vmax, amax, rnorm, qf, vf)
         if stop:
             return mon.finish(qf, vf, False, stop, it, t, h, vmax, amax, rnorm)
         qf_prev, vf_prev = qf, vf
@@ -644,10 +679,10 @@ def _run_kinetic(system, st, lam, dt, max_it, max_wall, linear_solver, callback,
         return system.residual(q, lam)[free]
 
     qf = st.q[free].copy()
-    v = np.zeros_like(qf)  # velocity at the half step t - h/2
+    v = st.v0.copy()  # velocity at the half step t - h/2
     qf_prev = qf
     r = force(qf)
-    ke_prev = 0.0
+    ke_prev = 0.5 * float(np.dot(m * v, v))
     t = 0.0
     vmax = amax = rnorm = np.nan
     for it in range(max_it + 1):
@@ -660,7 +695,7 @@ def _run_kinetic(system, st, lam, dt, max_it, max_wall, linear_solver, callback,
             return mon.finish(qf, v, True, _converged_message(mon, it, vmax, amax), it, t, h, vmax, amax, rnorm)
         if it == max_it:
             break
-        stop = mon.tick(it, t, vmax, amax, rnorm)
+        stop = mon.tick(it, t, vmax, amax, rnorm, qf, v)
         if stop:
             return mon.finish(qf, v, False, stop, it, t, h, vmax, amax, rnorm)
         qf_prev = qf
@@ -844,7 +879,7 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
             # a partial step is progress; only a poor quadratic model shortens the pseudo step
             h *= 0.5
         vmax, amax, rnorm = mon.measure(v, r)
-        stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm)
+        stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm, q[free], v)
         if stop:
             return q, h, v, False, stop, vmax, amax, rnorm
 
