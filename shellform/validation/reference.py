@@ -10,3 +10,25 @@ VON_MISES_SOURCE = "analytic (von Mises truss, engineering strain)"
 # catenary: S_len = 2 a sinh(S / 2a), sag f = a (cosh(S / 2a) - 1)
 CATENARY_SOURCE = "analytic catenary"
 CATENARY_TOLERANCE = 5e-3
+
+# planar elastica under self-weight, theta'' = alpha (1 - s) cos(theta), clamped horizontally:
+# tip (x/L, z/L) for alpha = rho A g L^3 / EI
+CANTILEVER_SELF_WEIGHT = {1.0: (0.9912, -0.1235), 5.0: (0.8467, -0.4959), 10.0: (0.6564, -0.7002),
+                          39.24: (0.2871, -0.8934)}
+CANTILEVER_SOURCE = "planar elastica under self-weight (published.toml analytic.cantilever_self_weight)"
+CANTILEVER_TOLERANCE = 2e-3  # of L: the reference is given to 1e-4, 40 rod edges are good to ~1e-3
+
+# Euler buckling P_cr = pi^2 EI / (K L)^2
+EULER_EFFECTIVE_LENGTH = {"pinned-pinned": 1.0, "clamped-free": 2.0, "clamped-pinned": 0.699,
+                          "clamped-clamped": 0.5}
+EULER_SOURCE = "Euler buckling, pi^2 EI / (K L)^2"
+# Greenhill: a rod clamped at both ends buckles under the torque M_cr = 8.9868 EI / L (2 x the
+# first root of tan x = x)
+GREENHILL_TORQUE = 2 * 4.493409457909064
+GREENHILL_SOURCE = "Greenhill twist buckling, clamped ends"
+ROD_BUCKLING_TOLERANCE = 1e-2
+
+# multi-body rope approach (seed 000): rest states of hanging nets
+MRA_SOURCE = "multi-body rope approach, Sec. 3 (published.toml [mra])"
+MEMBRANE_SQUARE_COEFFICIENT = 0.0736714  # w_max = c p a^2 / N, small-slope membrane on a square
+MEMBRANE_SOURCE = "small-slope membrane, N laplacian(w) = -p (published.toml analytic.membrane_small_slope)"

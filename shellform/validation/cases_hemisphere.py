@@ -1,0 +1,51 @@
+"""Validation case of the hemispherical gridshell: snapping thresholds under apex indentation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..gridshell.study import PUBLISHED, SOURCE, TOLERANCE, indentation_case
+from ..io.table import plot_curve
+from .report import CaseResult, Check
+
+#: the paper's rod counts 2n (Sec. 3.2)
+PAPER_N = (5, 7, 9, 11)
+
+
+def case_hemisphere(out, ns=PAPER_N, voronoi_length: float = 1.0e-3) -> CaseResult:
+    """Indent each gridshell in modes I and II and compare the snaps with the published ones.
+
+    Thresholds are paired in path order; a path with fewer snaps than
+    published fails the missing ones. A snap beyond the published ones is
+    listed in the notes, not scored.
+    """
+    res = CaseResult("hemisphere", "pre-stressed hemispherical gridshell: snapping thresholds dD/R, modes I and II")
+    notes = []
+    for mode in ("I", "II"):
+        forces = []
+        for n in ns:
+            run = indentation_case(n, mode, voronoi_length=voronoi_length)
+            forces.append(run["max_force"])
+            for k, row in enumerate(run["comparison"]):
+                computed = np.nan if row["computed"] is None else row["computed"]
+                res.checks.append(Check(f"mode {mode}, n = {n}: snap {k + 1} dD/R", computed, row["published"],
+                                        TOLERANCE, relative=False, source=SOURCE))
+            extra = run["thresholds"][len(PUBLISHED[mode]["snap_dD_over_R"]):]
+            notes.append(f"mode {mode}, n = {n}: {run['n_dof']} DOFs, {run['total_s']:.0f} s, "
+                         f"max force {run['max_force']:.1f}"
+                         + (f", further snaps at {', '.join(f'{t:.3f}' for t in extra)}" if extra else ""))
+            fig = out / f"hemisphere_mode{mode}_n{n}.png"
+            x, y = np.asarray(run["curve"]["x"]), np.asarray(run["curve"]["y"])
+            snaps = [int(np.argmin(np.abs(x - t))) for t in run["thresholds"]]
+            plot_curve(fig, x, y, "dD / R", "-sum(Fz) R^2 / EI", f"mode {mode}, 2n = {2 * n} rods",
+                       marks=[(x[i], y[i], "snap") for i in snaps])
+            res.figures.append(fig.name)
+        slope, intercept = np.polyfit(ns, forces, 1)
+        fit = np.polyval([slope, intercept], ns)
+        r2 = 1 - np.sum((np.array(forces) - fit) ** 2) / np.sum((np.array(forces) - np.mean(forces)) ** 2)
+        res.checks.append(Check(f"mode {mode}: maximum force linear in n, R^2", float(r2), 1.0, 0.01,
+                                relative=False, source=SOURCE + " (trend: almost linear in n)"))
+    res.notes = ("Voronoi length {:.1f} mm. ".format(voronoi_length * 1e3) + "; ".join(notes)
+                 + ". The full study (convergence, construction routes, sensitivity, dense n) is "
+                 "validation/hemisphere/run.py.")
+    return res
