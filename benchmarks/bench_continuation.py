@@ -30,7 +30,8 @@ import numpy as np
 
 import shellform as sf
 from shellform.solvers.continuation import trace_path
-from shellform.solvers.stability import LDLFactor, inertia
+from shellform.solvers.linear import LDLFactor, LUFactor
+from shellform.solvers.stability import inertia
 
 
 def lattice_dome(rings: int, span: float = 10.0, rise_ratio: float = 0.08, EA: float = 1e7):
@@ -68,8 +69,6 @@ def lattice_dome(rings: int, span: float = 10.0, rise_ratio: float = 0.08, EA: f
 
 
 def superlu_time(system):
-    from shellform.solvers.linear import LUFactor
-
     K = system.tangent_free(system.q_ref)
     t0 = time.perf_counter()
     LUFactor(K)

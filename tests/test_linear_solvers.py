@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellform.solvers.linear import SingularMatrixError, factorize
+from shellform.solvers.linear import LDLFactor, SingularMatrixError, factorize
 
 
 def laplacian_3d(n):
@@ -56,3 +56,27 @@ def test_amg_refuses_an_indefinite_matrix():
 def test_unknown_method():
     with pytest.raises(ValueError, match="unknown linear solver"):
         factorize(sp.eye(3), "magic")
+
+
+def test_ldl_accepts_the_large_accurate_solution_of_a_nearly_singular_matrix():
+    """Next to a critical point |x| >> |b|: the backward error, not |r| / |b|, judges the solve."""
+    from scipy.sparse.linalg import eigsh
+
+    A = laplacian_3d(40)
+    lam_min = eigsh(A, k=1, sigma=0, which="LM", return_eigenvectors=False)[0]
+    A = sp.csr_matrix(A - (lam_min - 1e-10) * sp.eye(A.shape[0]))  # smallest eigenvalue 1e-10
+    b = np.random.default_rng(4).normal(size=A.shape[0])
+    x = factorize(A, "ldl").solve(b)
+    x_ref = np.linalg.solve(A.toarray(), b)
+    assert np.max(np.abs(x)) > 1e8 * np.max(np.abs(b))
+    assert np.allclose(x, x_ref, rtol=1e-4, atol=1e-4 * np.max(np.abs(x_ref)))
+
+
+def test_ldl_factor_reused_on_the_same_pattern_gives_up_its_storage():
+    A = laplacian_3d(10)
+    F1 = LDLFactor(A)
+    F2 = LDLFactor(2.0 * A, previous=F1)
+    b = np.ones(A.shape[0])
+    assert np.allclose(2.0 * (A @ F2.solve(b)), b)
+    with pytest.raises(RuntimeError, match="later factorisation"):
+        F1.solve(b)

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_continuation_models import braced_truss, von_mises
 
-from shellform.solvers.linear import SingularMatrixError
-from shellform.solvers.stability import LDLFactor, critical_modes, inertia
+from shellform.solvers.linear import LDLFactor, SingularMatrixError
+from shellform.solvers.stability import critical_modes, inertia
 
 
 def reference_counts(A, zero_tol):

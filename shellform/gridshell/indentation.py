@@ -48,9 +48,9 @@ from ..assembly import System
 from ..effects.loads import ConstantForce
 from ..errors import ModelError
 from ..solvers.continuation import trace_path
-from ..solvers.linear import SingularMatrixError
+from ..solvers.linear import LDLFactor, SingularMatrixError
 from ..solvers.newton import solve_static
-from ..solvers.stability import InertiaError, LDLFactor, critical_modes, inertia
+from ..solvers.stability import InertiaError, critical_modes, inertia
 from .hemisphere import HemisphereModel, PrestressResult
 
 MODES = ("I", "II")

@@ -48,9 +48,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import ModelError
-from .linear import LUFactor, SingularMatrixError
+from .linear import LDLFactor, LUFactor, SingularMatrixError
 from .newton import solve_static
-from .stability import InertiaError, LDLFactor, critical_modes, inertia
+from .stability import InertiaError, critical_modes, inertia
 
 CONTROLS = ("load", "displacement")
 CONSTRAINTS = ("spherical", "cylindrical")
@@ -356,23 +356,14 @@ class _Problem:
     def solve(self, F, b):
         t0 = time.perf_counter()
         try:
-            x = F.solve(b)
-            # an unpivoted LDL of an indefinite matrix may lose accuracy: refine, and
-            # fall back to LU only when the normwise backward error stays poor. (A
-            # residual relative to |b| alone would condemn every solve next to a
-            # critical point, where |x| is large because K is nearly singular.)
-            if isinstance(F, LDLFactor):
-                for _ in range(3):
-                    r = b - F._A @ x
-                    scale = F.norm_inf * float(np.max(np.abs(x), initial=0.0)) + float(np.max(np.abs(b), initial=0.0))
-                    if float(np.max(np.abs(r), initial=0.0)) <= 1e-12 * max(scale, 1e-300):
-                        return x
-                    x = x + F.solve(r, refine=False)
-                if not np.all(np.isfinite(x)) or float(np.max(np.abs(b - F._A @ x), initial=0.0)) > 1e-9 * max(
-                    F.norm_inf * float(np.max(np.abs(x), initial=0.0)) + float(np.max(np.abs(b), initial=0.0)), 1e-300
-                ):
-                    x = LUFactor(F._A).solve(b)
-            return x
+            try:
+                return F.solve(b)
+            except SingularMatrixError:
+                # an unpivoted LDL^T of an indefinite matrix may lose accuracy: its
+                # solve refines and refuses a poor backward error; then LU decides
+                if not isinstance(F, LDLFactor):
+                    raise
+                return LUFactor(F.A).solve(b)
         finally:
             self.timer.add("linear_algebra", t0)
 

@@ -4,10 +4,11 @@
 
 * ``"direct"`` (default): sparse LDL^T (QDLDL with AMD ordering) for the
   symmetric tangents shellform assembles; when it meets a zero pivot or its
-  solution fails a residual check, SuperLU LU with partial pivoting takes over.
-  Measured on a 148k-DOF rope-net tangent: QDLDL 6.6 s, SuperLU 150 s
-  (``benchmarks/bench_assembly.py``). The LDL^T factor also gives the inertia
-  (number of negative eigenvalues, Sylvester's law).
+  solution fails a backward-error check, SuperLU LU with partial pivoting takes
+  over. Measured on a 148k-DOF rope-net tangent: QDLDL 6.6 s, SuperLU 150 s
+  (``benchmarks/bench_assembly.py``). The LDL^T factor (:class:`LDLFactor`,
+  the same one :mod:`shellform.solvers.stability` and the continuation use)
+  also gives the inertia (number of negative eigenvalues, Sylvester's law).
 * ``"ldl"``, ``"lu"``: one of the two, without fallback.
 * ``"amg"``: conjugate gradients preconditioned by pyamg's smoothed-aggregation
   multigrid. For large symmetric positive definite tangents only (taut rope nets
@@ -26,49 +27,197 @@ class SingularMatrixError(RuntimeError):
     """The matrix could not be factorised or the solve did not converge."""
 
 
-class LDLFactor:
-    """Sparse LDL^T of a symmetric matrix (QDLDL, AMD ordering, no pivoting).
+def _upper_csc(A) -> sp.csc_matrix:
+    """Upper triangle of a symmetric matrix in CSC form, diagonal always stored.
 
-    Only the upper triangle of ``A`` is read. Each solve is followed by
-    iterative refinement; a solve whose relative residual stays above
-    ``check`` raises :class:`SingularMatrixError` (no pivoting means a tiny
-    pivot can spoil the factor, and we would rather know).
+    For a symmetric matrix the lower triangle of its CSR arrays is the upper
+    triangle in CSC form, so no transpose is needed. Explicit zeros are kept so
+    that the pattern (and qdldl's symbolic factorisation) does not change
+    when an entry happens to vanish.
+    """
+    A = sp.csr_matrix(A)
+    if not A.has_canonical_format:
+        A = A.copy()
+        A.sum_duplicates()
+    n = A.shape[0]
+    row = np.repeat(np.arange(n), np.diff(A.indptr))
+    has_diag = np.zeros(n, dtype=bool)
+    has_diag[row[A.indices == row]] = True
+    if not has_diag.all():
+        missing = np.flatnonzero(~has_diag)
+        coo = A.tocoo()
+        r = np.concatenate([coo.row, missing])
+        c = np.concatenate([coo.col, missing])
+        v = np.concatenate([coo.data, np.zeros(missing.size)])
+        A = sp.csr_matrix((v, (r, c)), shape=A.shape)
+        A.sum_duplicates()
+        row = np.repeat(np.arange(n), np.diff(A.indptr))
+    keep = A.indices <= row
+    counts = np.bincount(row[keep], minlength=n)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    return sp.csc_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
+
+
+class LDLFactor:
+    """Sparse ``L D L^T`` of a symmetric matrix (QDLDL, AMD ordering, no pivoting).
+
+    One factor serves solves (Newton, continuation, shift-invert Lanczos) and
+    stability: by Sylvester's law ``A`` has as many negative eigenvalues as
+    ``D`` has negative entries. Without pivoting a factorisation of an
+    indefinite matrix can meet a tiny pivot or grow large entries, so
+
+    * a zero or non-finite pivot raises :class:`SingularMatrixError`;
+    * every solve is refined iteratively and raises when its normwise backward
+      error ``|A x - b| / (|A| |x| + |b|)`` (infinity norms) stays above
+      ``check``. This measure, unlike a residual relative to ``|b|`` alone,
+      accepts the large but accurate solutions next to a critical point,
+      where ``A`` is nearly singular;
+    * :meth:`trustworthy` tells whether the pivot signs may be taken as the
+      inertia (no tiny pivot, small backward error of a test solve).
+
+    Parameters
+    ----------
+    A : sparse matrix
+        Symmetric matrix; only its lower triangle in CSR order is read.
+    previous : LDLFactor, optional
+        A factor of a matrix with the same sparsity pattern; its ordering and
+        symbolic factorisation are reused (qdldl ``update``). ``previous``
+        gives its storage to the new factor and cannot solve any more.
+    check : float or None
+        Largest accepted backward error of a solve (None: no check).
+    refine : int
+        Most steps of iterative refinement per solve.
+
+    Raises
+    ------
+    SingularMatrixError
+        When a pivot is zero or not finite.
     """
 
     method = "ldl"
 
-    def __init__(self, A: sp.spmatrix, check: float = 1e-8, refine: int = 2):
+    def __init__(self, A, previous: LDLFactor | None = None, check: float | None = 1e-9, refine: int = 3):
         import qdldl
 
+        U = _upper_csc(A)
         self.A = sp.csr_matrix(A)
+        self.n = U.shape[0]
         self.check = check
-        self.refine = refine
-        try:
-            self._solver = qdldl.Solver(sp.triu(self.A, format="csc"))
-        except RuntimeError as exc:  # zero pivot: not quasi-definite in this ordering
-            raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
+        self.refine = int(refine)
+        self.scale = float(np.max(np.abs(U.diagonal()))) if self.n else 0.0
+        if self.scale == 0.0:
+            self.scale = float(np.max(np.abs(U.data))) if U.nnz else 1.0
+        if (
+            previous is not None
+            and previous._solver is not None
+            and previous._U.shape == U.shape
+            and np.array_equal(previous._U.indptr, U.indptr)
+            and np.array_equal(previous._U.indices, U.indices)
+        ):
+            solver = previous._solver
+            previous._solver = None  # the qdldl object now holds this matrix
+            try:
+                solver.update(U, upper=True)
+            except (RuntimeError, ValueError) as exc:
+                raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
+        else:
+            try:
+                solver = qdldl.Solver(U, upper=True)
+            except (RuntimeError, ValueError) as exc:  # zero pivot: not quasi-definite in this ordering
+                raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
+        self._U = U
+        d = np.asarray(solver.factors()[1], dtype=float)
+        # qdldl's update does not report a zero pivot itself
+        if not np.all(np.isfinite(d)) or np.any(d == 0.0):
+            raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
+        self._solver = solver
+        self.d = d
+        self._norm_inf = None
 
+    # -- inertia --------------------------------------------------------------------
     @property
     def inertia(self) -> tuple[int, int, int]:
         """Counts of (negative, zero, positive) pivots = eigenvalues by Sylvester's law."""
-        d = self._solver.factors()[1]
-        return int(np.sum(d < 0)), int(np.sum(d == 0)), int(np.sum(d > 0))
+        neg = self.n_negative_pivots
+        return neg, 0, self.n - neg  # a zero pivot raises in the constructor
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    @property
+    def n_negative_pivots(self) -> int:
+        return int(np.count_nonzero(self.d < 0.0))
+
+    @property
+    def min_pivot_ratio(self) -> float:
+        """Smallest ``|d_i|`` relative to the largest diagonal entry of the matrix."""
+        return float(np.min(np.abs(self.d)) / self.scale) if self.n else np.inf
+
+    @property
+    def norm_inf(self) -> float:
+        """Infinity norm of the factorised matrix (largest absolute row sum)."""
+        if self._norm_inf is None:
+            self._norm_inf = float(abs(self.A).sum(axis=1).max()) if self.n else 0.0
+        return self._norm_inf
+
+    # -- solves ---------------------------------------------------------------------
+    def _raw_solve(self, b: np.ndarray) -> np.ndarray:
+        if self._solver is None:
+            raise RuntimeError("this LDL^T factor gave its storage to a later factorisation (previous=...)")
+        return self._solver.solve(b)
+
+    def _backward_error(self, x: np.ndarray, b: np.ndarray, r: np.ndarray) -> float:
+        denom = self.norm_inf * float(np.max(np.abs(x), initial=0.0)) + float(np.max(np.abs(b), initial=0.0))
+        res = float(np.max(np.abs(r), initial=0.0))
+        return res / denom if denom > 0.0 else (0.0 if res == 0.0 else np.inf)
+
+    def solve(self, b: np.ndarray, refine: int | None = None) -> np.ndarray:
+        """Solve ``A x = b`` with iterative refinement.
+
+        Parameters
+        ----------
+        b : ndarray
+        refine : int, optional
+            Most refinement steps (default: the factor's ``refine``); each
+            stops as soon as the backward error is at the rounding level.
+
+        Raises
+        ------
+        SingularMatrixError
+            When the result is not finite or its backward error stays above
+            ``check`` (a tiny pivot spoiled the factor, or ``A`` is singular).
+        """
         b = np.asarray(b, dtype=float)
-        x = self._solver.solve(b)
-        nb = np.linalg.norm(b)
-        for _ in range(self.refine + 1):
+        steps = self.refine if refine is None else int(refine)
+        x = self._raw_solve(b)
+        eta = np.inf
+        for k in range(steps + 1):
             if not np.all(np.isfinite(x)):
                 break
             r = b - self.A @ x
-            if np.linalg.norm(r) <= 1e-14 * nb:
-                return x
-            x = x + self._solver.solve(r)
-        r = b - self.A @ x if np.all(np.isfinite(x)) else b
-        if not np.all(np.isfinite(x)) or np.linalg.norm(r) > self.check * max(nb, 1e-300):
-            raise SingularMatrixError("LDL^T solve failed its residual check (tiny pivot or singular matrix)")
+            eta = self._backward_error(x, b, r)
+            if eta <= 1e-12 or k == steps:
+                break
+            x = x + self._raw_solve(r)
+        if not np.all(np.isfinite(x)):
+            raise SingularMatrixError("LDL^T solve produced non-finite values (matrix numerically singular)")
+        if self.check is not None and eta > self.check:
+            raise SingularMatrixError(
+                f"LDL^T solve failed its backward-error check ({eta:.1e} > {self.check:.1e}): "
+                "tiny pivot or singular matrix"
+            )
         return x
+
+    def backward_error(self) -> float:
+        """Normwise backward error of an unrefined test solve with a random right-hand side."""
+        rng = np.random.default_rng(12345)
+        x_true = rng.standard_normal(self.n)
+        b = self.A @ x_true
+        x = self._raw_solve(b)
+        if not np.all(np.isfinite(x)):
+            return np.inf
+        return self._backward_error(x, b, b - self.A @ x)
+
+    def trustworthy(self, pivot_tol: float = 1e-10, backward_tol: float = 1e-11) -> bool:
+        """Whether the pivot signs give the inertia: no tiny pivot, small backward error."""
+        return self.min_pivot_ratio > pivot_tol and self.backward_error() < backward_tol
 
 
 class LUFactor:

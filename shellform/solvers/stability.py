@@ -7,8 +7,9 @@ or bifurcation point. Counting it is more informative than the sign of
 ``det K``, which cannot see two eigenvalues crossing zero together.
 
 By Sylvester's law of inertia, ``K = P L D L^T P^T`` has as many negative
-eigenvalues as ``D`` has negative entries. :class:`LDLFactor` factorises with
-``qdldl`` (AMD ordering, no pivoting). Without pivoting a factorisation of an
+eigenvalues as ``D`` has negative entries.
+:class:`~shellform.solvers.linear.LDLFactor` factorises with ``qdldl`` (AMD
+ordering, no pivoting). Without pivoting a factorisation of an
 indefinite matrix can meet a zero or tiny pivot or grow large entries, so
 :func:`inertia` trusts the count only when every pivot is clearly away from
 zero and a test solve has a small backward error. Otherwise it brackets zero
@@ -28,7 +29,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .linear import SingularMatrixError
+from .linear import LDLFactor, SingularMatrixError
 
 #: below this size eigenvalue problems are solved densely
 DENSE_LIMIT = 400
@@ -36,142 +37,6 @@ DENSE_LIMIT = 400
 
 class InertiaError(RuntimeError):
     """The inertia of a matrix could not be determined reliably."""
-
-
-# ---------------------------------------------------------------------------
-# LDL^T factorisation
-# ---------------------------------------------------------------------------
-def _upper_csc(A) -> sp.csc_matrix:
-    """Upper triangle of a symmetric matrix in CSC form, diagonal always stored.
-
-    For a symmetric matrix the lower triangle of its CSR arrays is the upper
-    triangle in CSC form, so no transpose is needed. Explicit zeros are kept so
-    that the pattern (and qdldl's symbolic factorisation) does not change
-    when an entry happens to vanish.
-    """
-    A = sp.csr_matrix(A)
-    if not A.has_sorted_indices:
-        A = A.copy()
-        A.sort_indices()
-    n = A.shape[0]
-    row = np.repeat(np.arange(n), np.diff(A.indptr))
-    has_diag = np.zeros(n, dtype=bool)
-    has_diag[row[A.indices == row]] = True
-    if not has_diag.all():
-        missing = np.flatnonzero(~has_diag)
-        coo = A.tocoo()
-        r = np.concatenate([coo.row, missing])
-        c = np.concatenate([coo.col, missing])
-        v = np.concatenate([coo.data, np.zeros(missing.size)])
-        A = sp.csr_matrix((v, (r, c)), shape=A.shape)
-        A.sum_duplicates()
-        A.sort_indices()
-        row = np.repeat(np.arange(n), np.diff(A.indptr))
-    keep = A.indices <= row
-    counts = np.bincount(row[keep], minlength=n)
-    indptr = np.concatenate([[0], np.cumsum(counts)])
-    return sp.csc_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
-
-
-class LDLFactor:
-    """Symmetric ``L D L^T`` factorisation (qdldl) with solve and inertia.
-
-    Parameters
-    ----------
-    A : sparse matrix
-        Symmetric matrix; only its lower triangle in CSR order is read.
-    previous : LDLFactor, optional
-        A factor of a matrix with the same sparsity pattern; its ordering and
-        symbolic factorisation are reused (qdldl ``update``).
-
-    Raises
-    ------
-    SingularMatrixError
-        When a pivot is zero or not finite.
-    """
-
-    method = "ldl"
-
-    def __init__(self, A, previous: LDLFactor | None = None):
-        import qdldl
-
-        U = _upper_csc(A)
-        self.n = U.shape[0]
-        self._A = A
-        self.scale = float(np.max(np.abs(U.diagonal()))) if self.n else 0.0
-        if self.scale == 0.0:
-            self.scale = float(np.max(np.abs(U.data))) if U.nnz else 1.0
-        solver = None
-        if (
-            previous is not None
-            and previous._solver is not None
-            and previous._U.shape == U.shape
-            and np.array_equal(previous._U.indptr, U.indptr)
-            and np.array_equal(previous._U.indices, U.indices)
-        ):
-            solver = previous._solver
-            previous._solver = None  # the qdldl object now holds this matrix
-            try:
-                solver.update(U, upper=True)
-            except (RuntimeError, ValueError) as exc:
-                raise SingularMatrixError(f"LDL factorisation failed: {exc}") from None
-        else:
-            try:
-                solver = qdldl.Solver(U, upper=True)
-            except (RuntimeError, ValueError) as exc:
-                raise SingularMatrixError(f"LDL factorisation failed: {exc}") from None
-        self._U = U
-        d = np.asarray(solver.factors()[1], dtype=float)
-        # qdldl's update does not report a zero pivot itself
-        if not np.all(np.isfinite(d)) or np.any(d == 0.0):
-            raise SingularMatrixError("LDL factorisation met a zero pivot (matrix singular in this ordering)")
-        self._solver = solver
-        self.d = d
-        self._norm_inf = None
-
-    @property
-    def norm_inf(self) -> float:
-        """Infinity norm of the factorised matrix (largest absolute row sum)."""
-        if self._norm_inf is None:
-            self._norm_inf = float(abs(self._A).sum(axis=1).max()) if self.n else 0.0
-        return self._norm_inf
-
-    @property
-    def n_negative_pivots(self) -> int:
-        return int(np.count_nonzero(self.d < 0.0))
-
-    @property
-    def min_pivot_ratio(self) -> float:
-        """Smallest ``|d_i|`` relative to the largest diagonal entry of the matrix."""
-        return float(np.min(np.abs(self.d)) / self.scale) if self.n else np.inf
-
-    def solve(self, b: np.ndarray, refine: bool = True) -> np.ndarray:
-        """Solve ``A x = b``, with one step of iterative refinement when needed."""
-        b = np.asarray(b, dtype=float)
-        x = self._solver.solve(b)
-        if refine:
-            r = b - self._A @ x
-            if np.linalg.norm(r) > 1e-12 * max(np.linalg.norm(b), 1e-300):
-                x = x + self._solver.solve(r)
-        if not np.all(np.isfinite(x)):
-            raise SingularMatrixError("LDL solve produced non-finite values (matrix numerically singular)")
-        return x
-
-    def backward_error(self) -> float:
-        """Normwise backward error of a test solve, ``|A x - b| / (|A| |x| + |b|)`` (infinity norms)."""
-        rng = np.random.default_rng(12345)
-        x_true = rng.standard_normal(self.n)
-        b = self._A @ x_true
-        x = self._solver.solve(b)
-        if not np.all(np.isfinite(x)):
-            return np.inf
-        r = self._A @ x - b
-        denom = self.norm_inf * float(np.max(np.abs(x))) + float(np.max(np.abs(b)))
-        return float(np.max(np.abs(r)) / denom) if denom > 0 else 0.0
-
-    def trustworthy(self, pivot_tol: float = 1e-10, backward_tol: float = 1e-11) -> bool:
-        """Whether the pivot signs give the inertia: no tiny pivot, small backward error."""
-        return self.min_pivot_ratio > pivot_tol and self.backward_error() < backward_tol
 
 
 # ---------------------------------------------------------------------------
