@@ -211,7 +211,8 @@ def write_meshes(out: Path, res: FormFindingResult, inv: InvertedShell, tag: str
     return names
 
 
-def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None = None) -> dict:
+def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None = None, *,
+                 q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None, export=None) -> dict:
     """Form-find one case and write its results.
 
     Parameters
@@ -224,6 +225,16 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
         Directory for ``hanging.vtu``, ``inverted.vtu`` and ``summary.json``.
     progress : callable, optional
         Receives progress lines.
+    q0, v0 : ndarray, optional
+        Start the relaxation from this state (and velocity) instead of the
+        case's start shape: a checkpointed ``RelaxationProgress.q`` resumes a run.
+    callback : callable, optional
+        Also receives every ``RelaxationProgress`` of the form finding (for
+        checkpoints); returning True stops it.
+    export : callable, optional
+        ``export(result, inverted, out_dir) -> list of file names``: further
+        files written after the meshes (``inverted`` is None when the
+        inversion failed).
 
     Returns
     -------
@@ -242,8 +253,15 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
     options = _solver_options(p, progress)
     say(f"MRA case {p['name']!r}: {net.structure.n_nodes} nodes, {len(net.rope_edges)} ropes, "
         f"{len(net.supports)} suspension points, scheme {options['scheme']}")
-    q0, start_note = start_state(p, net, options)
-    res = form_find(net, q0, **options)
+    if q0 is None:
+        q0, start_note = start_state(p, net, options)
+    else:
+        start_note = {"type": "resumed"}
+    main_options = dict(options)
+    if callback is not None:
+        shown = options.get("callback")
+        main_options["callback"] = callback if shown is None else (lambda info: bool(shown(info)) | bool(callback(info)))
+    res = form_find(net, q0, v0=v0, **main_options)
     say(res.relaxation.message)
     summary = {"name": p["name"], **res.summary()}
     summary["relaxation_wall_time_s"] = summary.pop("wall_time_s")
@@ -286,6 +304,8 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
                 lc_inv = None
             files += write_meshes(out, lc.result, lc_inv, tag="_length_control")
         say(f"length control: conforming ropes per round {lc.n_conforming}")
+    if export is not None:
+        files += export(res, inv, out)
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t0
     write_json(out / "summary.json", summary)
