@@ -86,7 +86,13 @@ def _as_index_array(values, n_max: int, what: str) -> np.ndarray:
     return arr
 
 
-def _broadcast_property(value, m: int, what: str, allow_zero: bool = False) -> np.ndarray:
+def broadcast_property(value, m: int, what: str, allow_zero: bool = False, item: str = "member") -> np.ndarray:
+    """A scalar or ``m`` per-item values as a checked float array of shape ``(m,)``.
+
+    Raises :class:`ModelError` naming ``what`` and the first offending
+    ``item`` (member, edge, hinge, joint, entry) when the shape is wrong or a value is
+    not finite or not positive (non-negative with ``allow_zero``).
+    """
     arr = np.asarray(value, dtype=float)
     if arr.ndim == 0:
         arr = np.full(m, float(arr))
@@ -94,11 +100,11 @@ def _broadcast_property(value, m: int, what: str, allow_zero: bool = False) -> n
         raise ModelError(f"{what}: expected a scalar or {m} values, got shape {arr.shape}")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
-        raise ModelError(f"{what}: value of member {int(bad[0])} is not finite ({arr[bad[0]]})")
+        raise ModelError(f"{what}: value of {item} {int(bad[0])} is not finite ({arr[bad[0]]})")
     bad = np.flatnonzero(arr < 0 if allow_zero else arr <= 0)
     if bad.size:
         need = "non-negative" if allow_zero else "positive"
-        raise ModelError(f"{what}: value of member {int(bad[0])} must be {need}, got {arr[bad[0]]}")
+        raise ModelError(f"{what}: value of {item} {int(bad[0])} must be {need}, got {arr[bad[0]]}")
     return arr
 
 
@@ -228,14 +234,14 @@ class Structure:
                 "coincident nodes cannot define a member"
             )
         rest = length if rest_length is None else rest_length
-        rest = _broadcast_property(rest, m, f"member group {name!r} rest_length")
+        rest = broadcast_property(rest, m, f"member group {name!r} rest_length")
         group = MemberGroup(
             name=name,
             kind=kind,
             connectivity=conn,
-            EA=_broadcast_property(EA, m, f"member group {name!r} EA"),
+            EA=broadcast_property(EA, m, f"member group {name!r} EA"),
             rest_length=rest,
-            mass_per_length=_broadcast_property(mass_per_length, m, f"member group {name!r} mass_per_length", True),
+            mass_per_length=broadcast_property(mass_per_length, m, f"member group {name!r} mass_per_length", True),
         )
         self.groups.append(group)
         return group

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import all_finite
 from test_continuation_models import (
     ALPHA, EA, H, L, LS, P_CR, braced_critical, braced_truss, load_of_deflection,
     spring_truss, spring_truss_w_extrema, truss_load, von_mises,
@@ -52,7 +53,7 @@ def test_von_mises_load_control_follows_analytic_curve(vm_load):
     assert np.allclose(res["displacement"], H - z, atol=1e-14)
     # through the snap to the inverted configuration, with enough points to see the curve
     assert z.min() < -H and res.n_points > 40
-    assert np.all(np.isfinite(res["lam"]))
+    assert all_finite(res["lam"])
 
 
 def test_von_mises_load_control_limit_points(vm_load):
@@ -151,7 +152,7 @@ def test_snap_back_traced_continuously(control):
     # both load and displacement turn back (twice each): a true snap-back
     sign_changes = lambda x: int(np.sum(np.diff(np.sign(np.diff(x))) != 0))  # noqa: E731
     assert sign_changes(P) == 2 and sign_changes(w) == 2
-    assert np.all(np.isfinite(P)) and np.all(np.isfinite(w))
+    assert all_finite(P, w)
     limits = res.events_of("limit")
     assert len(limits) == 2 and all(e.located for e in limits)
     if control == "load":

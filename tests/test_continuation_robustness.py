@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import all_finite
 from test_continuation_models import (
     H, L, LS, P_CR, THETA_CR, braced_critical, braced_truss, load_of_deflection, spring_truss,
     truss_load, von_mises,
@@ -34,7 +35,7 @@ def test_step_landing_exactly_on_the_limit_point():
     assert res.status == "callback", res.message
     z = np.array(res.states)[:, 5]
     assert abs(z[1] - Z_CR) < 1e-12  # the first step ended on the limit point
-    assert np.all(np.isfinite(res["lam"])) and np.all(np.isfinite(z))
+    assert all_finite(res["lam"], z)
     assert np.max(np.abs(res["lam"] - truss_load(np.arctan2(z, L)))) < 1e-8 * P_CR
     assert np.all(np.diff(z) < 0)  # kept going down through the limit, no reversal
     limits = res.events_of("limit")
@@ -52,7 +53,7 @@ def test_start_next_to_the_limit_point():
     res = trace_path(system, "load", q0=q0, p0=p0, ds=0.01, ds_max=0.02, max_steps=200, callback=_past_inversion)
     assert res.status == "callback", res.message
     z = np.array(res.states)[:, 5]
-    assert np.all(np.isfinite(res["lam"]))
+    assert all_finite(res["lam"])
     assert np.max(np.abs(res["lam"] - truss_load(np.arctan2(z, L)))) < 1e-8 * P_CR
     assert np.all(np.diff(z) < 0)
     assert abs(res.events_of("limit")[-1].parameter + P_CR) < 1e-9 * P_CR
@@ -80,7 +81,7 @@ def test_very_stiff_member(control):
     S = np.array(res.states)
     v, w = H - S[:, 5], H + LS - S[:, 11]
     P = res["load"]
-    assert np.all(np.isfinite(P))
+    assert all_finite(P)
     assert np.max(np.abs(P - load_of_deflection(v))) < 1e-7 * P_CR
     assert np.max(np.abs(w - v - P / ks)) < 1e-12 * H
     if control == "load":
@@ -107,7 +108,7 @@ def test_failure_is_reported_not_hidden():
     assert not res.success and res.status == "failed"
     assert "ds_min" in res.message and "corrector" in res.message
     assert res.rejected_steps > 0
-    assert np.all(np.isfinite(res["lam"]))
+    assert all_finite(res["lam"])
     z = np.array(res.states)[:, 5]
     assert np.max(np.abs(res["lam"] - truss_load(np.arctan2(z, L)))) < 1e-8 * P_CR
 

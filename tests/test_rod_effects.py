@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from helpers import all_finite
 from fd import dense_hessian, fd_gradient, fd_jacobian
 
 from shellform.errors import MechanismError, ModelError
@@ -40,7 +41,7 @@ def network_from(lines, closed=(), natural=None, twist=None, seed=0, **kw):
 def check_effects(net, q, h=1e-6, tol=1e-6):
     for e in net.effects():
         g = e.gradient(q)
-        assert np.all(np.isfinite(g)), e.name
+        assert all_finite(g), e.name
         gf = fd_gradient(e.energy, q, h)
         H = dense_hessian(e, q)
         Hf = fd_jacobian(e.gradient, q, h)

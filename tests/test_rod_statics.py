@@ -4,36 +4,13 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from shellform.model import Structure
-from shellform.rods.network import RodNetwork, build_rod_system
+from shellform.rods.network import build_rod_system
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.newton import solve_static
+from shellform.validation.cases_rods import G, euler_column, self_weight_cantilever
 
 # published.toml, analytic.cantilever_self_weight
 CANTILEVER = {1.0: (0.9912, -0.1235), 5.0: (0.8467, -0.4959), 10.0: (0.6564, -0.7002), 39.24: (0.2871, -0.8934)}
-G = 9.81
-
-
-def straight_rod(stations, EA, EI=1.0, GJ=1.0 / 1.3, mass_per_length=0.0):
-    """A rod along x through the given arc-length stations."""
-    s = Structure(np.stack([stations, 0 * stations, 0 * stations], axis=1))
-    net = RodNetwork(s)
-    net.add_rod(np.arange(len(stations)), EA=EA, EI=EI, GJ=GJ, mass_per_length=mass_per_length)
-    return s, net
-
-
-def clamped_stations(n, L=1.0, both=False):
-    """Nodes with the clamped end edge astride s = 0 (and s = L when ``both``): the clamped
-    frame lives at the edge midpoint."""
-    l = L / (n - 1.0) if both else L / (n - 0.5)
-    return (np.arange(n + 1) - 0.5) * l
-
-
-def self_weight_cantilever(alpha, n=40, L=1.0, EI=1.0):
-    s, net = straight_rod(clamped_stations(n, L), EA=1e5 * EI / L**2, EI=EI, mass_per_length=alpha * EI / (G * L**3))
-    net.clamp(0, "start")
-    s.set_gravity((0.0, 0.0, -G))
-    return s, net
 
 
 @pytest.mark.parametrize("alpha", sorted(CANTILEVER))
@@ -65,33 +42,6 @@ def test_newton_converges_quadratically_on_a_rod():
     # order estimate from three consecutive residuals
     order = np.log(tail[2] / tail[1]) / np.log(tail[1] / tail[0])
     assert order > 1.6, r
-
-
-def euler_column(case, n=40, EA=1e6, L=1.0):
-    """Straight column under an end load along -x (scaled load, lam = P)."""
-    if case == "pinned-pinned":
-        st = np.linspace(0.0, L, n + 1)
-    else:
-        st = clamped_stations(n, L, both=case == "clamped-clamped")
-    s, net = straight_rod(st, EA=EA)
-    N = n
-    if case == "pinned-pinned":
-        net.pin(0, "start", twist="fixed")
-        s.fix([N], "yz")
-        s.add_load([N], [-1.0, 0, 0])
-    elif case == "clamped-free":
-        net.clamp(0, "start")
-        s.add_load([N], [-1.0, 0, 0])
-    elif case == "clamped-pinned":
-        net.clamp(0, "start")
-        s.fix([N], "yz")
-        s.add_load([N], [-1.0, 0, 0])
-    else:  # the far clamp slides along x: both its nodes carry half the load
-        net.clamp(0, "start")
-        s.fix([N - 1, N], "yz")
-        net.fix_twist(0, "end")
-        s.add_load([N - 1, N], [-0.5, 0, 0])
-    return s, build_rod_system(net)
 
 
 EULER = {  # P_cr L^2 / EI = pi^2 / K^2

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from helpers import all_finite
 from fd import fd_jacobian, relative_error
 from scipy.optimize import brentq
 
@@ -71,7 +72,7 @@ def test_von_mises_beyond_limit_load_fails_clearly_or_jumps_to_inverted_state():
     theta_cr = np.arccos(np.cos(alpha) ** (1 / 3))
     P = 1.2 * 2 * EA * np.sin(theta_cr) ** 3
     res = sf.solve_static(sf.build_system(von_mises(L, H, EA)), lam=P)
-    assert np.all(np.isfinite(res.q))
+    assert all_finite(res.q)
     if res.success:
         # the only equilibria at this load are on the inverted branch
         theta = np.arctan(res.q[5] / L)
@@ -119,4 +120,4 @@ def test_newton_reports_failure_instead_of_nan():
     res = sf.solve_static(system, lam=1.0, max_iter=1, rtol=1e-30, atol=0.0)
     assert not res.success
     assert "not converged" in res.message
-    assert np.all(np.isfinite(res.q))
+    assert all_finite(res.q)

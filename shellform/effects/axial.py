@@ -87,12 +87,9 @@ class AxialBar(_AxialMembers):
     ----------
     n_dof : int
         Size of the global DOF vector.
-    connectivity : array_like, shape (m, 2)
-        End nodes of each bar.
-    EA : array_like, shape (m,)
-        Axial stiffness [N].
-    rest_length : array_like, shape (m,)
-        Unstressed length [m].
+    connectivity, EA, rest_length : array_like, shapes (m, 2), (m,), (m,)
+        End nodes, axial stiffness [N] and unstressed length [m] of each bar
+        (the fields of a :class:`~shellform.model.MemberGroup`).
     """
 
     name = "axial"

@@ -32,21 +32,15 @@ from ..rods.hinge import (
     material_curvature_value,
 )
 from ..rods.kinematics import curvature_binormal, dot
-from .base import Effect
 
 
-class RodBending(HingeEffect, Effect):
+class RodBending(HingeEffect):
     """Isotropic bending with natural curvature, all hinges of all rods at once.
 
     Parameters
     ----------
-    n_dof : int
-    frames : ReferenceFrames
-        Shared reference state of the rod edges.
-    stencil : ndarray (h, 11)
-        DOFs ``(x0, x1, x2, theta0, theta1)`` of every hinge.
-    voronoi : ndarray (h,)
-        Rest Voronoi lengths ``dl`` [m].
+    n_dof, frames, stencil, voronoi
+        As for :class:`~shellform.rods.hinge.HingeEffect`.
     EI : ndarray (h,)
         Bending stiffness [N m^2].
     natural_curvature : ndarray (h, 2, 2)
@@ -57,11 +51,8 @@ class RodBending(HingeEffect, Effect):
     name = "rod_bend"
 
     def __init__(self, n_dof, frames, stencil, voronoi, EI, natural_curvature):
-        Effect.__init__(self, n_dof)
-        self._setup(frames, stencil)
-        self.voronoi = np.asarray(voronoi, dtype=float)
+        super().__init__(n_dof, frames, stencil, voronoi, EI)
         self.EI = np.asarray(EI, dtype=float)
-        self.k = self.EI / (2.0 * self.voronoi)
         self.omega_bar = np.asarray(natural_curvature, dtype=float).reshape(-1, 2, 2)
         # only hinges with a natural curvature see the material frames
         self.curved = np.flatnonzero(np.any(self.omega_bar != 0.0, axis=(1, 2)))

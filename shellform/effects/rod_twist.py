@@ -18,21 +18,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..rods.hinge import HingeEffect, reference_twist_change
-from .base import Effect
 
 
-class RodTwisting(HingeEffect, Effect):
+class RodTwisting(HingeEffect):
     """Twisting of all hinges of all rods at once.
 
     Parameters
     ----------
-    n_dof : int
-    frames : ReferenceFrames
-        Shared reference state of the rod edges.
-    stencil : ndarray (h, 11)
-        DOFs ``(x0, x1, x2, theta0, theta1)`` of every hinge.
-    voronoi : ndarray (h,)
-        Rest Voronoi lengths [m].
+    n_dof, frames, stencil, voronoi
+        As for :class:`~shellform.rods.hinge.HingeEffect`.
     GJ : ndarray (h,)
         Torsional stiffness [N m^2].
     natural_twist : ndarray (h,)
@@ -42,11 +36,8 @@ class RodTwisting(HingeEffect, Effect):
     name = "rod_twist"
 
     def __init__(self, n_dof, frames, stencil, voronoi, GJ, natural_twist):
-        Effect.__init__(self, n_dof)
-        self._setup(frames, stencil)
-        self.voronoi = np.asarray(voronoi, dtype=float)
+        super().__init__(n_dof, frames, stencil, voronoi, GJ)
         self.GJ = np.asarray(GJ, dtype=float)
-        self.k = self.GJ / (2.0 * self.voronoi)
         self.tau_bar = np.asarray(natural_twist, dtype=float)
 
     def twist(self, q: np.ndarray) -> np.ndarray:

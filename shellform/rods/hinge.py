@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..effects.base import element_pattern, scatter
+from ..effects.base import Effect, element_pattern, scatter
 from .kinematics import dot, skew
 
 _I3 = np.eye(3)
@@ -320,19 +320,35 @@ def to_stencil(t0, t1, l0, l1, g, H=None):
 # -- common machinery of the hinge effects ------------------------------------------------
 
 
-class HingeEffect:
-    """Mixin for effects defined on rod hinges (11-DOF stencils) with shared reference frames.
+class HingeEffect(Effect):
+    """Base of the effects defined on rod hinges (11-DOF stencils) with shared reference frames.
 
+    The energy of hinge ``i`` is ``k_i f_i`` with ``k_i = stiffness_i / (2 dl_i)``.
     Subclasses implement ``_local(q, order)`` returning the energy per hinge and,
     for ``order >= 1``, its gradient (h, 8) and, for ``order == 2``, Hessian
     (h, 8, 8) over ``(t0, t1, theta0, theta1)``.
+
+    Parameters
+    ----------
+    n_dof : int
+    frames : ReferenceFrames
+        Shared reference state of the rod edges.
+    stencil : ndarray (h, 11)
+        DOFs ``(x0, x1, x2, theta0, theta1)`` of every hinge.
+    voronoi : ndarray (h,)
+        Rest Voronoi lengths ``dl`` [m].
+    stiffness : ndarray (h,)
+        Bending or torsional stiffness [N m^2].
     """
 
-    def _setup(self, frames, stencil):
+    def __init__(self, n_dof, frames, stencil, voronoi, stiffness):
+        super().__init__(n_dof)
         self.frames = frames
         self.stencil = np.asarray(stencil, dtype=np.int64)
         self.hinge_edges = frames.hinges
         self._pattern = element_pattern(self.stencil)
+        self.voronoi = np.asarray(voronoi, dtype=float)
+        self.k = np.asarray(stiffness, dtype=float) / (2.0 * self.voronoi)
 
     def _geometry(self, q):
         t, l = self.frames.tangents(q)

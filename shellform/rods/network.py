@@ -37,7 +37,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import MechanismError, ModelError
-from ..model import Structure
+from ..model import Structure, broadcast_property
 from .kinematics import (
     ReferenceFrames,
     curvature_binormal,
@@ -227,19 +227,6 @@ class NodePath:
         return cls(dofs, lambda t: np.asarray(positions(t), dtype=float).ravel())
 
 
-def _per_item(value, m: int, what: str, allow_zero: bool = False) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    if arr.ndim == 0:
-        arr = np.full(m, float(arr))
-    if arr.shape != (m,):
-        raise ModelError(f"{what}: expected a scalar or {m} values, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr) | ((arr < 0) if allow_zero else (arr <= 0)))
-    if bad.size:
-        need = "non-negative" if allow_zero else "positive"
-        raise ModelError(f"{what}: value {int(bad[0])} must be finite and {need}, got {arr[bad[0]]}")
-    return arr
-
-
 class RodNetwork:
     """Discrete elastic rods and joints on the nodes of a structure.
 
@@ -358,17 +345,17 @@ class RodNetwork:
         if short.size:
             k = int(short[0])
             raise ModelError(f"rod {name!r}: edge {k} (nodes {e_nodes[k, 0]}-{e_nodes[k, 1]}) has zero length")
-        rest = length if rest_length is None else _per_item(rest_length, m, f"rod {name!r} rest_length")
-        EA = _per_item(EA, m, f"rod {name!r} EA")
-        mpl = _per_item(mass_per_length, 1, f"rod {name!r} mass_per_length", allow_zero=True)[0]
-        rot = _per_item(rotational_inertia, 1, f"rod {name!r} rotational_inertia", allow_zero=True)[0]
+        rest = length if rest_length is None else broadcast_property(rest_length, m, f"rod {name!r} rest_length", item="edge")
+        EA = broadcast_property(EA, m, f"rod {name!r} EA", item="edge")
+        mpl = broadcast_property(mass_per_length, 1, f"rod {name!r} mass_per_length", True, "entry")[0]
+        rot = broadcast_property(rotational_inertia, 1, f"rod {name!r} rotational_inertia", True, "entry")[0]
 
         # hinges: consecutive edge pairs (local numbering)
         local = np.arange(m)
         hinge_local = np.stack([local, np.roll(local, -1)], axis=1) if closed else np.stack([local[:-1], local[1:]], axis=1)
         h = len(hinge_local)
-        EI = _per_item(EI, h, f"rod {name!r} EI") if h else np.zeros(0)
-        GJ = _per_item(GJ, h, f"rod {name!r} GJ") if h else np.zeros(0)
+        EI = broadcast_property(EI, h, f"rod {name!r} EI", item="hinge") if h else np.zeros(0)
+        GJ = broadcast_property(GJ, h, f"rod {name!r} GJ", item="hinge") if h else np.zeros(0)
         twist_rate = np.asarray(natural_twist, dtype=float)
         twist_rate = np.broadcast_to(twist_rate, (h,)) if twist_rate.ndim == 0 else twist_rate
         if twist_rate.shape != (h,) or not np.all(np.isfinite(twist_rate)):
@@ -462,7 +449,7 @@ class RodNetwork:
         if same.size:
             raise ModelError(f"joints: joint {int(same[0])} ties node {p[same[0], 0]} to itself")
         if stiffness is not None:
-            k = _per_item(stiffness, len(p), "joints stiffness")
+            k = broadcast_property(stiffness, len(p), "joints stiffness", item="joint")
         else:
             if not np.isfinite(stiffness_ratio) or stiffness_ratio <= 0:
                 raise ModelError(f"joints: stiffness_ratio must be positive, got {stiffness_ratio}")

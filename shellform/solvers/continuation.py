@@ -65,17 +65,37 @@ _CHECKPOINT_VERSION = 1
 # result objects
 # ---------------------------------------------------------------------------
 @dataclass
-class PathPoint:
-    """One converged point of the path (what a progress callback receives)."""
+class PathLocation:
+    """Where a state lies on the path.
 
-    step: int
-    branch: int
+    Attributes
+    ----------
+    arc_length : float
+    lam, mu : float
+        Load factor and magnitude of the prescribed displacements.
+    parameter : float
+        The continuation parameter (``lam`` or ``mu``).
+    load : float
+        Generalised load: ``lam`` under load control, the reaction conjugate
+        to ``mu`` under displacement control.
+    displacement : float
+        Displacement measure conjugate to ``load``.
+    """
+
     arc_length: float
     lam: float
     mu: float
     parameter: float
     load: float
     displacement: float
+
+
+@dataclass
+class PathPoint(PathLocation):
+    """One converged point of the path (what a progress callback receives)."""
+
+    step: int
+    branch: int
     n_negative: int
     iterations: int
     ds: float
@@ -84,7 +104,7 @@ class PathPoint:
 
 
 @dataclass
-class PathEvent:
+class PathEvent(PathLocation):
     """A critical point found along the path.
 
     Attributes
@@ -97,8 +117,7 @@ class PathEvent:
         Step at whose end the event was detected (it lies between points
         ``step - 1`` and ``step``).
     arc_length, lam, mu, parameter, load, displacement : float
-        Location (``load`` is the generalised load: ``lam`` under load
-        control, the reaction conjugate to ``mu`` under displacement control).
+        Location (:class:`PathLocation`).
     n_negative_before, n_negative_after : int
         Negative-eigenvalue counts at the ends of the step.
     located : bool
@@ -126,12 +145,6 @@ class PathEvent:
 
     kind: str
     step: int
-    arc_length: float
-    lam: float
-    mu: float
-    parameter: float
-    load: float
-    displacement: float
     n_negative_before: int
     n_negative_after: int
     located: bool
@@ -489,6 +502,14 @@ class _Tracer:
         return math.sqrt(max(self.dot(du, dp, du, dp), 0.0))
 
     # -- measures -------------------------------------------------------------------------
+    def location(self, q, r, p, arc_length) -> dict:
+        """The :class:`PathLocation` fields of state ``q`` (residual ``r``) at parameter ``p``."""
+        lam, mu = self.pb.lam_mu(p)
+        return dict(
+            arc_length=arc_length, lam=lam, mu=mu, parameter=float(p),
+            load=self.pb.load_measure(r, p), displacement=self.displacement_measure(q, p),
+        )
+
     def displacement_measure(self, q, p):
         if self.control == "displacement":
             return float(p)
@@ -633,11 +654,9 @@ class _Tracer:
 
     # -- recording ---------------------------------------------------------------------------
     def record(self, q, r, p, iterations, ds, n_neg):
-        lam, mu = self.pb.lam_mu(p)
         mon = self.monitor_values(q, p)
         point = PathPoint(
-            step=self.step, branch=self.branch, arc_length=self.s, lam=lam, mu=mu, parameter=float(p),
-            load=self.pb.load_measure(r, p), displacement=self.displacement_measure(q, p),
+            **self.location(q, r, p, self.s), step=self.step, branch=self.branch,
             n_negative=int(n_neg), iterations=int(iterations), ds=float(ds), q=q, monitors=mon,
         )
         for c in TABLE_COLUMNS:
@@ -873,13 +892,11 @@ class _Tracer:
         self.timer.add("stability", t1)
         mode = np.zeros(self.system.n_dof)
         mode[self.free] = vec
-        lam, mu = self.pb.lam_mu(p)
         reactions = np.zeros(self.system.n_dof)
         reactions[self.system.constrained] = r[self.system.constrained]
         bracket = abs(p_hi - p_lo)
         ev = PathEvent(
-            kind=kind, step=self.step + 1, arc_length=self.s + sigma, lam=lam, mu=mu, parameter=float(p),
-            load=self.pb.load_measure(r, p), displacement=self.displacement_measure(q, p),
+            **self.location(q, r, p, self.s + sigma), kind=kind, step=self.step + 1,
             n_negative_before=int(n_A), n_negative_after=-1, located=located, bracket=bracket,
             arc_bracket=hi - lo, eigenvalue=eig, mode=mode, q=q.copy(), reactions=reactions,
             tangent=np.concatenate([t_du, [t_dp]]),

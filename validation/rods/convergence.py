@@ -16,11 +16,10 @@ Each run is timed from building the model to the answer. Writes
 from __future__ import annotations
 
 import argparse
-import csv
 import time
-from pathlib import Path
 
 import numpy as np
+from common import fmt, write_results
 from scipy.optimize import brentq
 
 from shellform.model import Structure
@@ -28,7 +27,6 @@ from shellform.rods.network import RodNetwork, build_rod_system
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.newton import solve_static
 
-OUT = Path(__file__).parent / "results"
 ALPHA = 39.24
 GREENHILL = 2 * 4.493409457909064
 
@@ -91,6 +89,18 @@ def cantilever(n, tip_ref=None):
     return err, time.perf_counter() - t0, sum(res.iterations), res.success
 
 
+def onset(system, load_key, lo, hi):
+    """Load (``lam`` or ``mu``) at which the lowest eigenvalue of the tangent crosses zero, and the Newton iterations spent."""
+    its = []
+
+    def f(value):
+        w, res = lowest_eigenvalue(system, **{load_key: value})
+        its.append(res.iterations)
+        return w
+
+    return brentq(f, lo, hi, xtol=1e-10), sum(its)
+
+
 def euler_clamped_free(n):
     t0 = time.perf_counter()
     st = (np.arange(n + 1) - 0.5) / (n - 0.5)
@@ -99,15 +109,8 @@ def euler_clamped_free(n):
     s.add_load([n], [-1.0, 0, 0])
     system = build_rod_system(net)
     P_e = np.pi**2 / 4
-    its = []
-
-    def f(P):
-        w, res = lowest_eigenvalue(system, lam=P)
-        its.append(res.iterations)
-        return w
-
-    P = brentq(f, 0.8 * P_e, 1.2 * P_e, xtol=1e-10)
-    return abs(P / P_e - 1), time.perf_counter() - t0, sum(its), True
+    P, its = onset(system, "lam", 0.8 * P_e, 1.2 * P_e)
+    return abs(P / P_e - 1), time.perf_counter() - t0, its, True
 
 
 def greenhill(n):
@@ -120,16 +123,9 @@ def greenhill(n):
     s.prescribe_dofs([rod.twist_dofs[-1]], [1.0])
     system = build_rod_system(net)
     phi_e = GREENHILL * EI / GJ
-    its = []
-
-    def f(phi):
-        w, res = lowest_eigenvalue(system, mu=phi)
-        its.append(res.iterations)
-        return w
-
-    phi = brentq(f, 0.8 * phi_e, 1.2 * phi_e, xtol=1e-10)
+    phi, its = onset(system, "mu", 0.8 * phi_e, 1.2 * phi_e)
     torque = GJ * phi  # L = 1, uniform twist
-    return abs(torque / GREENHILL - 1), time.perf_counter() - t0, sum(its), True
+    return abs(torque / GREENHILL - 1), time.perf_counter() - t0, its, True
 
 
 CASES = {
@@ -144,7 +140,6 @@ def main():
     parser.add_argument("--edges", type=int, nargs="+", default=[10, 20, 40, 80, 160, 320])
     parser.add_argument("--repeat", type=int, default=2, help="runs per point; the shortest wall time is kept")
     args = parser.parse_args()
-    OUT.mkdir(exist_ok=True)
     rows = []
     tip = elastica_tip(ALPHA)
     print(f"elastica reference tip for alpha = {ALPHA}: x/L = {tip[0]:.10f}, z/L = {tip[1]:.10f}")
@@ -162,22 +157,22 @@ def main():
                          "observed_order": order, "newton_iterations": its, "wall_time_s": wall, "success": ok})
             print(f"{name:42s} n={n:4d} dl/L={1 / n:.4f} error={err:.3e} order={order:5.2f} "
                   f"iterations={its:4d} wall={wall:7.3f}s", flush=True)
-    with open(OUT / "convergence.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    with open(OUT / "convergence.md", "w") as f:
-        f.write("# Rod discretisation: error against Voronoi length, with wall time\n\n")
-        f.write("Written by `python validation/rods/convergence.py`. Voronoi length `dl = L / n` "
-                "(n edges over the span). Wall time covers building the model and solving "
-                f"(shortest of {args.repeat} runs). Cantilever reference: elastica by solve_bvp, "
-                f"tip = ({tip[0]:.10f}, {tip[1]:.10f}).\n\n")
-        f.write("| case | n | dl / L | error | observed order | Newton iterations | wall time [s] |\n")
-        f.write("|---|---:|---:|---:|---:|---:|---:|\n")
-        for r in rows:
-            order = "" if np.isnan(r["observed_order"]) else f"{r['observed_order']:.2f}"
-            f.write(f"| {r['case']} | {r['edges']} | {r['voronoi_length_over_L']:.4f} | {r['error']:.3e} | "
-                    f"{order} | {r['newton_iterations']} | {r['wall_time_s']:.3f} |\n")
+    write_results(
+        "convergence", rows, "Rod discretisation: error against Voronoi length, with wall time",
+        "Written by `python validation/rods/convergence.py`. Voronoi length `dl = L / n` "
+        "(n edges over the span). Wall time covers building the model and solving "
+        f"(shortest of {args.repeat} runs). Cantilever reference: elastica by solve_bvp, "
+        f"tip = ({tip[0]:.10f}, {tip[1]:.10f}).",
+        [
+            ("case", "case", str, False),
+            ("n", "edges", str, True),
+            ("dl / L", "voronoi_length_over_L", fmt(".4f"), True),
+            ("error", "error", fmt(".3e"), True),
+            ("observed order", "observed_order", lambda v: "" if np.isnan(v) else f"{v:.2f}", True),
+            ("Newton iterations", "newton_iterations", str, True),
+            ("wall time [s]", "wall_time_s", fmt(".3f"), True),
+        ],
+    )
 
 
 if __name__ == "__main__":

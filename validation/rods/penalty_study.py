@@ -17,11 +17,10 @@ Writes ``validation/rods/results/penalty_study.md`` and ``.csv``.
 
 from __future__ import annotations
 
-import csv
 import time
-from pathlib import Path
 
 import numpy as np
+from common import fmt, write_results
 
 from shellform.model import Structure
 from shellform.rods.grids import square_grid_polylines
@@ -29,7 +28,6 @@ from shellform.rods.network import RodNetwork, build_rod_system, stack_polylines
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.implicit_euler import implicit_euler, lumped_mass
 
-OUT = Path(__file__).parent / "results"
 RATIOS = 10.0 ** np.arange(2, 9)
 
 
@@ -77,7 +75,6 @@ def dynamic_run(merge, ratio=1e4, T=2.0, h=0.02):
 
 
 def main():
-    OUT.mkdir(exist_ok=True)
     rows = []
     for kind, run in (("static", static_run), ("implicit Euler", dynamic_run)):
         s0, idx0, _, ref_res, ref_wall = run(True)
@@ -99,22 +96,24 @@ def main():
             print(f"  ratio {ratio:7.0e}: success={res.success} finite={finite} steps={row['steps']} "
                   f"max Newton/step={row['max_newton_per_step']} total={row['total_newton']} "
                   f"gap={gap:.3e} distance={err:.3e} wall={wall:.2f}s", flush=True)
-    with open(OUT / "penalty_study.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    with open(OUT / "penalty_study.md", "w") as f:
-        f.write("# Joint penalty study (buckling-induced 3 x 3 grid, dome height ~0.28 span)\n\n")
-        f.write("Written by `python validation/rods/penalty_study.py`. Penalty `K_s = ratio x` the rods' "
-                "axial edge stiffness `EA / L` at the joint. Distance: largest nodal distance from the "
-                "solution with shared joint nodes (same solver).\n\n")
-        f.write("| solver | ratio | success | finite | steps | max Newton / step | total Newton | "
-                "max joint gap | distance to shared | wall [s] |\n")
-        f.write("|---|---:|---|---|---:|---:|---:|---:|---:|---:|\n")
-        for r in rows:
-            f.write(f"| {r['solver']} | {r['penalty_ratio']:.0e} | {r['success']} | {r['finite']} | {r['steps']} | "
-                    f"{r['max_newton_per_step']} | {r['total_newton']} | {r['max_joint_gap']:.3e} | "
-                    f"{r['max_distance_to_shared']:.3e} | {r['wall_time_s']:.2f} |\n")
+    write_results(
+        "penalty_study", rows, "Joint penalty study (buckling-induced 3 x 3 grid, dome height ~0.28 span)",
+        "Written by `python validation/rods/penalty_study.py`. Penalty `K_s = ratio x` the rods' "
+        "axial edge stiffness `EA / L` at the joint. Distance: largest nodal distance from the "
+        "solution with shared joint nodes (same solver).",
+        [
+            ("solver", "solver", str, False),
+            ("ratio", "penalty_ratio", fmt(".0e"), True),
+            ("success", "success", str, False),
+            ("finite", "finite", str, False),
+            ("steps", "steps", str, True),
+            ("max Newton / step", "max_newton_per_step", str, True),
+            ("total Newton", "total_newton", str, True),
+            ("max joint gap", "max_joint_gap", fmt(".3e"), True),
+            ("distance to shared", "max_distance_to_shared", fmt(".3e"), True),
+            ("wall [s]", "wall_time_s", fmt(".2f"), True),
+        ],
+    )
 
 
 if __name__ == "__main__":
