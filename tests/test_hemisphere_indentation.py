@@ -134,3 +134,14 @@ def test_a_dome_and_its_mirror_image_are_labelled(model):
     x = q[: 3 * m.structure.n_nodes].reshape(-1, 3)
     x[:, 2] *= -1.0
     assert classify_configuration(m, q) == "U-"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode, published", [("I", MODE_I), ("II", MODE_II)])
+def test_paper_resolution_n11(mode, published):
+    """n = 11 at the paper's Voronoi length of 1 mm (about a minute per mode)."""
+    m = build_hemisphere(11, voronoi_length=1.0e-3)
+    res = trace_indentation(indentation_system(m, prestress_on_net(m), mode=mode))
+    assert res.success, res.message
+    for computed, ref in zip(res.thresholds, published):
+        assert abs(computed - ref) <= TOL, (res.thresholds, published)
