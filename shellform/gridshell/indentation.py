@@ -314,7 +314,7 @@ def _eigsh_about(K, sigma: float):
     n = K.shape[0]
     A = K if sigma == 0.0 else (K - sigma * sp.identity(n, format="csr")).tocsr()
     F = LDLFactor(A)
-    op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b), refine=True), dtype=float)
+    op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b)), dtype=float)
     w, V = spla.eigsh(K, k=1, sigma=sigma, which="LM", OPinv=op, tol=1e-9)
     return float(w[0]), V[:, 0], F
 

@@ -41,8 +41,7 @@ def case_mra(out) -> CaseResult:
     res = CaseResult("mra", "MRA form finding: hanging chain, the 9 x 4 net of the paper, the membrane limit")
     notes = []
     span, length, EA, w = 10.0, 12.0, 1.0e6, 1.0
-    # the extension of the ropes under their tension lengthens the chain a little: compare
-    # with the catenary of the stretched length (T / EA ~ 1e-5 here)
+    # the inextensible catenary: the ropes stretch by T / EA ~ 1e-5, far below the tolerance
     exact = catenary_sag(span, length)
     for scheme, n in (("implicit", 200), ("kinetic", 40), ("rk4", 40)):
         r = relax(build_system(slack_chain(n, span, length, w, EA)), scheme=scheme, rtol=1e-7)
