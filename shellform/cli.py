@@ -75,10 +75,10 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_schema(args) -> int:
-    from .schema import describe
+    from .schema import reference
     from .scene import SCENE
 
-    print("\n".join(describe(SCENE, level=3)))
+    print(reference(SCENE))
     return 0
 
 
@@ -90,7 +90,8 @@ def main(argv=None) -> int:
                      "(default: the built-in default scene)")
     run.add_argument("--out", default="results", help="output directory (default: ./results)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
-    run.add_argument("--resume", action="store_true", help="continue an interrupted path from DIR/checkpoint.npz")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted continuation, relaxation or "
+                     "time stepping from its checkpoint in DIR")
     run.set_defaults(func=_cmd_run)
     val = sub.add_parser("validate", help="reproduce published and analytic results; write report.md")
     val.add_argument("cases", nargs="*", help="case names (default: all)")

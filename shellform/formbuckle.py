@@ -1,59 +1,48 @@
-"""Find a form, then check whether it snaps.
+"""Find a form, export it, then check whether it snaps.
 
-The hanging net of an MRA form finding, mirrored (Hooke), is built as a
-gridshell of discrete elastic rods: every grid line becomes one continuous
-rod through the shared grid nodes, pinned at the suspension points with the
-twist of the edges there held. The rods are either straight when unstressed
-(``rest_shape = "straight"``, an elastic gridshell bent into the found form
-from straight laths, as the Mannheim Multihalle was; the prestress of bending
-is relaxed first) or stress-free in the found shape (``"found"``). Joints
-couple positions only, as in the gridshell paper, so rods can roll about
-their axes; naturally curved rods of circular section do so under load. Its self-weight
-(the load the form was found for) is then scaled by a load factor and the
-equilibrium path is traced by arc-length continuation up to the first limit
-or bifurcation point: the load factor there is the shell's buckling safety
-against its own design load.
+:func:`run_form_finding` runs an MRA form-finding scene through
+:func:`shellform.mra.run_mra_case`: the relaxation state is checkpointed every
+few seconds (``relaxation_checkpoint.npz``, written atomically) so that
+``--resume`` restarts from the last saved state, and the found form is
+exported for design: the inverted shell as a quad surface mesh
+(``inverted_shell.vtu``) and, when asked, a Rhino file (``form.3dm``) with the
+hanging net, the inverted net, the shell surface and the grid lines as
+polylines (the centrelines of the laths or rods that build it).
+
+:func:`run_form_and_buckle` goes on: the hanging net, mirrored (Hooke), is
+built as a gridshell of discrete elastic rods: every grid line becomes one
+continuous rod through the shared grid nodes, pinned at the suspension points
+with the twist of the edges there held. The rods are either straight when
+unstressed (``rest_shape = "straight"``, an elastic gridshell bent into the
+found form from straight laths, as the Mannheim Multihalle was; the prestress
+of bending is relaxed first) or stress-free in the found shape (``"found"``).
+Joints couple positions only, as in the gridshell paper, so rods can roll
+about their axes; naturally curved rods of circular section do so under load.
+Its self-weight (the load the form was found for) is then scaled by a load
+factor and the equilibrium path is traced by arc-length continuation up to the
+first limit or bifurcation point: the load factor there is the shell's
+buckling safety against its own design load.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from .errors import SceneError
+from .errors import MechanismError, ModelError, SceneError
+from .io.checkpoint import load_checkpoint, save_checkpoint
 from .model import Structure
 
-BUCKLING_DEFAULTS = {
-    "E": 210.0e9,  # Pa
-    "G": None,  # default E / 2.6
-    "radius": 0.02,  # m, solid circular section
-    "density": 0.0,  # kg/m^3 of the rods themselves (the form-finding weight is the load)
-    "load_factor_max": 100.0,
-    "max_steps": 60,
-    "initial_increment": None,
-    "rest_shape": "straight",
-}
+#: rod section of the gridshell built on a found form when [rods] leaves it open
+ROD_DEFAULTS = {"E": 210.0e9, "radius": 0.02, "density": 0.0}
+RELAXATION_CHECKPOINT = "relaxation_checkpoint.npz"
 
-
-def _merge_buckling(given) -> dict:
-    if not isinstance(given, dict):
-        raise SceneError("buckling", f"expected a table, got {type(given).__name__}")
-    bad = set(given) - set(BUCKLING_DEFAULTS)
-    if bad:
-        raise SceneError(f"buckling.{sorted(bad)[0]}", f"unknown key; expected one of {sorted(BUCKLING_DEFAULTS)}")
-    out = {**BUCKLING_DEFAULTS, **given}
-    for key in ("E", "radius", "load_factor_max"):
-        v = out[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
-            raise SceneError(f"buckling.{key}", f"got {v!r}; expected a positive number")
-    if out["rest_shape"] not in ("straight", "found"):
-        raise SceneError("buckling.rest_shape", f"got {out['rest_shape']!r}; expected 'straight' or 'found'")
-    if not isinstance(out["max_steps"], int) or isinstance(out["max_steps"], bool) or out["max_steps"] < 1:
-        raise SceneError("buckling.max_steps", f"got {out['max_steps']!r}; expected a positive integer")
-    return out
+Progress = Callable[[str], None]
 
 
 def grid_lines(grid) -> list[np.ndarray]:
@@ -102,48 +91,183 @@ def dome_rods(result, section: dict, plane_z: float | None = None):
     return s, network
 
 
-def run_form_and_buckle(params: dict, out_dir, progress: Callable[[str], None] | None = None) -> dict:
-    """Form-find an MRA case, then trace the buckling of its rod gridshell.
+# -- checkpoints of the relaxation ------------------------------------------------------------
 
-    ``params`` is an MRA case (``validation/mra/README.md``) with an extra
-    ``buckling`` table: rod section (``E``, ``G``, ``radius``, ``density``) and
-    continuation bounds (``load_factor_max``, ``max_steps``,
-    ``initial_increment``).
+
+def _fingerprint(params: dict) -> str:
+    """What a saved state depends on: the net (not the solver settings, which a resumed run may change)."""
+    net = {k: params[k] for k in ("geometry", "supports", "ropes", "masses", "loads")}
+    return hashlib.sha256(json.dumps(net, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+class RelaxationCheckpoint:
+    """Saves the state of a relaxation at most every ``interval`` seconds (a progress callback).
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.npz`` file (written atomically).
+    interval : float
+        Seconds of wall time between saves (0: at every progress call).
+    fingerprint : str
+        Identifies the net; :meth:`load` refuses a file of another net.
+    """
+
+    def __init__(self, path, interval: float, fingerprint: str):
+        self.path = Path(path)
+        self.interval = float(interval)
+        self.fingerprint = fingerprint
+        self.last = -np.inf
+        self.saves = 0
+
+    def save(self, q, v, iteration: int, scheme: str, converged: bool = False) -> None:
+        save_checkpoint(self.path, q=q, v=v, iteration=iteration, scheme=scheme, converged=converged,
+                        fingerprint=self.fingerprint)
+        self.last = time.perf_counter()
+        self.saves += 1
+
+    def __call__(self, info) -> None:
+        if info.q is not None and time.perf_counter() - self.last >= self.interval:
+            self.save(info.q, info.v, info.iteration, info.scheme)
+
+    def load(self) -> dict | None:
+        """The saved state, or None when there is none."""
+        data = load_checkpoint(self.path)
+        if data is None:
+            return None
+        if str(data["fingerprint"]) != self.fingerprint:
+            raise SceneError("--resume", f"{self.path} holds the state of a different net (geometry, supports, "
+                             "ropes, masses or loads changed); delete it or run without --resume")
+        return data
+
+
+def _resume_state(checkpoint: RelaxationCheckpoint, params: dict, resume: bool, say: Progress):
+    if not resume:
+        return None, None
+    data = checkpoint.load()
+    if data is None:
+        say(f"no relaxation checkpoint in {checkpoint.path.parent}: starting from the start shape")
+        return None, None
+    scheme = params["solver"]["scheme"]
+    same = str(data["scheme"]) == scheme and scheme != "implicit"
+    say(f"resuming the relaxation from {checkpoint.path.name} (iteration {int(data['iteration'])} of the "
+        f"{data['scheme']} scheme)")
+    # an explicit run continues on its trajectory; the implicit scheme starts from rest
+    return data["q"], data["v"] if same else None
+
+
+# -- exports of a found form ------------------------------------------------------------------
+
+
+def export_form(scene: dict, res, inv, out: Path) -> list[str]:
+    """The inverted shell as a quad surface (VTU) and the form as Rhino geometry (when asked)."""
+    from .io.shell import write_surface
+
+    files = []
+    net = res.net
+    if inv is None:
+        return files
+    support = np.zeros(net.structure.n_nodes)
+    support[net.supports] = 1.0
+    height = inv.positions[:, 2] - inv.plane_z
+    if scene["output"]["meshes"]:
+        write_surface(out / "inverted_shell.vtu", inv.positions, net.grid.quads,
+                      {"support": support, "height": height})
+        files.append("inverted_shell.vtu")
+    if "3dm" in scene["output"]["formats"]:
+        from .io.rhino import write_3dm
+
+        x = inv.positions
+        write_3dm(out / "form.3dm",
+                  lines={"hanging net": (res.positions, net.rope_edges), "inverted net": (x, net.rope_edges)},
+                  polylines={"centrelines": [x[c] for c in grid_lines(net.grid)]},
+                  meshes={"inverted shell": (x, net.grid.quads)})
+        files.append("form.3dm")
+    return files
+
+
+def _find_form(scene: dict, out: Path, progress: Progress, resume: bool, keep: dict | None = None) -> dict:
+    """Run the form finding with checkpoints and exports; ``keep`` receives the result objects."""
+    from .mra.case import run_mra_case
+    from .scene import mra_params
+
+    params = mra_params(scene)
+    checkpoint = RelaxationCheckpoint(out / RELAXATION_CHECKPOINT,
+                                      scene["analysis"]["relaxation"]["checkpoint_interval"], _fingerprint(params))
+    q0, v0 = _resume_state(checkpoint, params, resume, progress)
+
+    def export(res, inv, out_dir):
+        r = res.relaxation
+        checkpoint.save(r.q, r.v, r.iterations, r.scheme, converged=bool(res.converged))
+        if keep is not None:
+            keep.update(result=res, inverted=inv)
+        return export_form(scene, res, inv, Path(out_dir)) + [RELAXATION_CHECKPOINT]
+
+    try:
+        summary = run_mra_case(params, out, progress, q0=q0, v0=v0, callback=checkpoint, export=export)
+    except ModelError as exc:
+        # the net could not be built or held: name the part of the scene that describes it
+        text = str(exc)
+        where = "supports" if isinstance(exc, MechanismError) or any(
+            w in text for w in ("support", "grid position", "frame")) else "geometry"
+        raise SceneError(where, text) from None
+    summary["checkpoints_written"] = checkpoint.saves
+    return summary
+
+
+def run_form_finding(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False) -> dict:
+    """Form-find a validated planform scene and write its results (see the module docstring)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = _find_form(scene, out, progress or (lambda msg: None), resume)
+    summary.setdefault("analysis", "mra")
+    return summary
+
+
+def _section(scene: dict) -> dict:
+    from .rods.network import circular_section
+
+    rods = scene["rods"] or {}
+    value = {k: (rods.get(k) if rods.get(k) is not None else d) for k, d in ROD_DEFAULTS.items()}
+    E = value["E"]
+    G = rods.get("G") or E / 2.6
+    section = circular_section(E=E, G=G, radius=value["radius"], density=value["density"])
+    section["natural_curvature"] = "straight" if rods.get("rest_shape", "straight") == "straight" else "rest"
+    return {"section": section, "E": E, "G": G, "radius": value["radius"],
+            "rest_shape": rods.get("rest_shape", "straight")}
+
+
+def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False) -> dict:
+    """Form-find a validated planform scene, then trace the buckling of its rod gridshell.
+
+    The rod section is ``[rods]`` (``E``, ``G``, ``radius``, ``density``,
+    ``rest_shape``), the continuation bounds ``[analysis.buckling]``. Writes
+    the form-finding files and ``buckling_path.csv``, ``buckling_path.xdmf``,
+    ``buckling_curve.png``, ``buckling_path_events.json`` and the path's
+    checkpoint.
     """
     from .io import write_series
-    from .io.table import plot_curve, write_csv
-    from .mra.case import _merge, _solver_options, build_net, start_state, write_meshes
-    from .mra.formfind import form_find
-    from .mra.inversion import invert
-    from .rods.network import build_rod_system, circular_section
+    from .pipeline import run_continuation_case
+    from .rods.network import build_rod_system
     from .solvers import solve_static
-    from .solvers.continuation import TABLE_COLUMNS, trace_path
 
     say = progress or (lambda msg: None)
     out = Path(out_dir)
-    params = dict(params)
-    b = _merge_buckling(params.pop("buckling", {}))
-    t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    p = _merge(params)
-    net = build_net(p)
-    options = _solver_options(p, progress)
-    say(f"form finding: {net.structure.n_nodes} nodes, {len(net.rope_edges)} ropes, "
-        f"{len(net.supports)} suspension points")
-    q0, _ = start_state(p, net, options)
-    form = form_find(net, q0, **options)
-    say(form.relaxation.message)
-    if not form.converged:
-        return {"converged": False, "message": form.relaxation.message, **form.summary()}
-    summary = {**form.summary(), "inverted": invert(form).summary()}
+    t0 = time.perf_counter()
+    b = scene["analysis"]["buckling"]
+    found: dict = {}
+    summary = _find_form(scene, out, say, resume, keep=found)
+    summary["analysis"] = "form_and_buckle"
     summary["form_finding_wall_time_s"] = summary.pop("wall_time_s")
-    summary["files"] = write_meshes(out, form, invert(form))
-    section = circular_section(E=b["E"], G=b["G"] or b["E"] / 2.6, radius=b["radius"], density=b["density"])
-    section["natural_curvature"] = "straight" if b["rest_shape"] == "straight" else "rest"
-    structure, network = dome_rods(form, section)
+    form = found["result"]
+    if not form.converged:
+        return summary
+    sec = _section(scene)
+    structure, network = dome_rods(form, sec["section"])
     system = build_rod_system(network, gravity_scaled=True)
     q_start = None
-    if b["rest_shape"] == "straight":
+    if sec["rest_shape"] == "straight":
         # laths bent into the found shape: let the bending prestress settle, unloaded
         erected = solve_static(system, lam=0.0)
         say(f"erection (prestress relaxed, no load): {erected.message}")
@@ -154,26 +278,19 @@ def run_form_and_buckle(params: dict, out_dir, progress: Callable[[str], None] |
     apex = int(np.argmax(structure.nodes[:, 2]))
     say(f"buckling of the inverted shell: {len(network.rods)} rods, {system.n_free} free DOFs; "
         f"self-weight scaled by the load factor up to {b['load_factor_max']}")
-
-    def report(point):
-        say(f"  step {point.step:3d}  load factor {point.lam: .5g}  apex z-displacement {point.monitors['apex_w']: .4g} m"
-            f"  negative eigenvalues {point.n_negative}")
-
     options = dict(parameter_bounds=(0.0, b["load_factor_max"]), max_steps=b["max_steps"], stop_after_events=1,
-                   monitors={"apex_w": 3 * apex + 2})
+                   monitors={"apex_w": 3 * apex + 2}, q0=q_start)
     if b["initial_increment"] is not None:
         options["initial_increment"] = b["initial_increment"]
-    path = trace_path(system, control="load", q0=q_start, callback=report, **options)
-    say(path.message)
-    first = path.events[0] if path.events else None
-    columns = list(TABLE_COLUMNS) + ["apex_w"]
-    write_csv(out / "buckling_path.csv", path.table, columns)
+    path, path_summary = run_continuation_case(
+        system, out, "load", name="buckling_path", progress=say, resume=resume,
+        checkpoint_every=b["checkpoint_every"], plot_file="buckling_curve.png", x="apex_w",
+        xlabel="apex z-displacement [m]", ylabel="load factor on self-weight",
+        title="inverted shell under its own weight", event_x=lambda e: e.q[3 * apex + 2] - structure.nodes[apex, 2],
+        **options)
     write_series(out / "buckling_path.xdmf", system,
                  [(step, q, path.table["lam"][step]) for step, q in zip(path.state_steps, path.states)])
-    plot_curve(out / "buckling_curve.png", path["apex_w"], path["lam"], "apex z-displacement [m]",
-               "load factor on self-weight", "inverted shell under its own weight",
-               marks=[(first.q[3 * apex + 2] - structure.nodes[apex, 2], first.lam, first.kind)] if first else (),
-               stable=path["n_negative"] == 0)
+    first = path.events[0] if path.events else None
     summary["buckling"] = {
         "converged": bool(path.success),
         "message": path.message,
@@ -183,10 +300,10 @@ def run_form_and_buckle(params: dict, out_dir, progress: Callable[[str], None] |
         "max_load_factor_traced": float(np.max(path["lam"])),
         "n_rods": len(network.rods),
         "n_free_dof": int(system.n_free),
-        "section": {k: b[k] for k in ("E", "radius")},
-        "rest_shape": b["rest_shape"],
+        "section": {"E": sec["E"], "G": sec["G"], "radius": sec["radius"]},
+        "rest_shape": sec["rest_shape"],
     }
     summary["converged"] = bool(summary["converged"] and path.success)
-    summary["files"] = summary.get("files", []) + ["buckling_path.csv", "buckling_path.xdmf", "buckling_curve.png"]
+    summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf"]
     summary["wall_time_s"] = time.perf_counter() - t0
     return summary

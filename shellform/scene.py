@@ -1,14 +1,42 @@
-"""Scenes: TOML descriptions of a structure and its analysis.
+"""Scenes: TOML descriptions of a structure and its analysis, in one schema.
 
-``load_scene`` reads and validates a file against :data:`SCENE` (errors name
-the key, the value and what is allowed); ``build_structure`` turns the
-validated scene into a :class:`~shellform.model.Structure`; ``build_effects``
-creates exactly the effects the scene lists.
+:data:`~shellform.schema.SCENE` lists every key: ``load_scene`` reads and
+validates a file against it and checks what the schema alone cannot (which
+tables suit which geometry and analysis, sizes, node sets); errors name the
+key, the value and what is allowed.
+
+A scene takes its geometry from one source: ``[nodes]`` (explicit
+coordinates) or ``[geometry]`` of a ``type``: a planform grid meshed by gmsh
+(``rectangle``, ``ellipse``, ``disk``) or on a NURBS surface (``bspline``)
+for form finding, the Chebyshev-net ``hemisphere`` gridshell, or a ``file``
+read by meshio. The analysis (``[analysis] type``) must suit the geometry:
+
+=====================  =============================================
+geometry               analyses
+=====================  =============================================
+``[nodes]``, ``file``  ``static``, ``continuation``, ``dynamics``
+planform grids         ``mra``, ``form_and_buckle``
+``hemisphere``         ``indentation``
+=====================  =============================================
+
+Older MRA scenes (``validation/mra/README.md``) keep working: their
+top-level ``[solver]``, ``[start]``, ``[lengths]`` and ``[buckling]`` tables
+are read as ``[analysis.relaxation]``, ``[analysis.start_shape]``,
+``[analysis.lengths]`` and ``[analysis.buckling]`` (with the rod section of
+``[buckling]`` as ``[rods]``), a single ``[supports]`` table as one
+``[[supports]]`` entry and ``[loads] gravity`` as ``[gravity] g``.
+
+``build_model`` turns a validated bar/rope scene into a
+:class:`~shellform.model.Structure` with its imperfection and a
+:class:`~shellform.assembly.System` holding exactly the effects the scene
+lists; ``mra_params`` gives the parameters of a form-finding scene for
+:func:`shellform.mra.run_mra_case`.
 """
 
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,181 +45,193 @@ from .assembly import System, member_effects
 from .effects import gravity_effect, nodal_load_effects
 from .errors import ModelError, SceneError
 from .model import Structure
-from .schema import Key, Table, check_table
+from .schema import (
+    ANALYSES_OF,
+    BAR_ROPE,
+    BUCKLING,
+    FORM_FINDING,
+    GRID_GROUPS,
+    PLANFORMS,
+    SCENE,
+    Table,
+    check_table,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-EFFECTS = ("axial", "rope", "loads", "gravity")
+#: older MRA layout: top-level table -> sub-table of [analysis]
+_LEGACY_ANALYSIS = {"solver": "relaxation", "start": "start_shape", "lengths": "lengths", "buckling": "buckling"}
+_ROD_KEYS = ("E", "G", "radius", "density", "rest_shape")
+_LEGACY_BUCKLING = Table(doc="", keys={**BUCKLING.keys, **{k: SCENE.keys["rods"].keys[k] for k in _ROD_KEYS}})
 
-SCENE = Table(
-    doc="A scene file.",
-    keys={
-        "title": Key("str", "Free text shown in the summary.", default=""),
-        "nodes": Table(
-            optional=False,
-            doc="Node coordinates of the reference configuration.",
-            keys={"coordinates": Key("points", "Reference coordinates, one [x, y, z] per node.", unit="m")},
-        ),
-        "members": Table(
-            array=True,
-            doc="Groups of two-node members sharing one law.",
-            keys={
-                "name": Key("str", "Group name (unique).", default=""),
-                "kind": Key("str", "Member law.", choices=("bar", "rope")),
-                "connectivity": Key("pairs", "End nodes of each member."),
-                "EA": Key("float_or_list", "Axial stiffness, one value or one per member.", unit="N",
-                          minimum=0.0, exclusive_minimum=True),
-                "mass_per_length": Key("float_or_list", "Linear density for self-weight.", default=0.0,
-                                       unit="kg/m", minimum=0.0),
-                "slack": Key("float_or_list", "Rope slack coefficient sc: rest length = (1 + sc) x reference "
-                             "length. Ropes only.", default=0.0, minimum=-1.0, exclusive_minimum=True),
-                "rest_length": Key("float_or_list", "Unstressed length; overrides the reference length and "
-                                   "slack.", default=None, unit="m", minimum=0.0, exclusive_minimum=True),
-            },
-        ),
-        "supports": Table(
-            array=True,
-            doc="Fixed translational components of nodes.",
-            keys={
-                "nodes": Key("index_list", "Supported nodes."),
-                "dofs": Key("str", "Fixed components, any of the letters x, y, z.", default="xyz"),
-            },
-        ),
-        "prescribed": Table(
-            array=True,
-            doc="Prescribed motion: displacement = parameter x direction.",
-            keys={
-                "nodes": Key("index_list", "Driven nodes."),
-                "direction": Key("vec3", "Displacement per unit parameter.", unit="m"),
-            },
-        ),
-        "loads": Table(
-            array=True,
-            doc="Nodal forces.",
-            keys={
-                "nodes": Key("index_list", "Loaded nodes."),
-                "force": Key("vec3", "Force on each listed node.", unit="N"),
-                "scaled": Key("bool", "Multiplied by the load factor (else a dead load).", default=True),
-            },
-        ),
-        "gravity": Table(
-            doc="Self-weight of member and point masses.",
-            keys={
-                "g": Key("vec3", "Gravitational acceleration.", default=[0.0, 0.0, -9.81], unit="m/s^2"),
-                "scaled": Key("bool", "Multiplied by the load factor (else a dead load).", default=False),
-            },
-        ),
-        "effects": Table(
-            doc="The physical effects to simulate; nothing else is evaluated.",
-            keys={
-                "include": Key("str_list", "Effects in the system. Default: those the scene's members and "
-                               "loads call for.", default=None, choices=EFFECTS),
-            },
-        ),
-        "analysis": Table(
-            fill_defaults=True,
-            doc="What to compute.",
-            keys={
-                "type": Key("str", "Analysis to run: one static solve, or a path traced by arc-length "
-                            "continuation (settings in [analysis.continuation]).", default="static",
-                            choices=("static", "continuation")),
-                "load_factor": Key("float", "Factor on the scaled loads.", default=1.0),
-                "prescribed": Key("float", "Prescribed-displacement parameter.", default=0.0),
-                "start": Key("points", "Starting coordinates (default: the reference).", default=None, unit="m"),
-                "merit": Key("str", "Line-search merit: energy finds stable equilibria, residual any.",
-                             default="energy", choices=("energy", "residual")),
-                "max_iterations": Key("int", "Newton iterations before giving up.", default=100, minimum=1),
-                "rtol": Key("float", "Residual tolerance relative to the load/reaction norm.", default=1e-10,
-                            minimum=0.0, exclusive_minimum=True),
-                "linear_solver": Key("str", "Linear solver.", default="direct", choices=("direct", "amg", "auto")),
-                "continuation": Table(
-                    fill_defaults=True,
-                    doc="Arc-length continuation (used when type = 'continuation'). The path starts from "
-                        "equilibrium at parameter 0 (the other parameter at its [analysis] value).",
-                    keys={
-                        "control": Key("str", "Path parameter: the load factor or the prescribed-displacement "
-                                       "parameter.", default="load", choices=("load", "displacement")),
-                        "max_steps": Key("int", "Accepted steps before stopping.", default=200, minimum=1),
-                        "parameter_min": Key("float", "Stop when the parameter falls below this.", default=None),
-                        "parameter_max": Key("float", "Stop when the parameter exceeds this.", default=None),
-                        "initial_increment": Key("float", "First parameter increment (default: 1/20 of the "
-                                                 "distance to the bound).", default=None),
-                        "max_displacement": Key("float", "Stop when a free DOF moves further than this.",
-                                                default=None, unit="m", minimum=0.0, exclusive_minimum=True),
-                        "constraint": Key("str", "Arc-length constraint.", default="spherical",
-                                          choices=("spherical", "cylindrical")),
-                        "stability": Key("bool", "Count negative eigenvalues of the tangent at every point.",
-                                         default=True),
-                        "on_bifurcation": Key("str", "At a bifurcation: stay on the primary branch, follow the "
-                                              "secondary one, or stop.", default="continue",
-                                              choices=("continue", "switch", "stop")),
-                        "branch_side": Key("int", "Which half of the secondary branch (+1 or -1).", default=1),
-                        "monitor_node": Key("int", "Node whose displacement is the curve's abscissa (default: "
-                                            "the most loaded or driven DOF).", default=None, minimum=0),
-                        "monitor_component": Key("str", "Component of monitor_node.", default="z",
-                                                 choices=("x", "y", "z")),
-                        "checkpoint_every": Key("int", "Write a checkpoint every this many steps.", default=10,
-                                                minimum=1),
-                    },
-                ),
-            },
-        ),
-        "output": Table(
-            fill_defaults=True,
-            doc="What to write.",
-            keys={
-                "formats": Key("str_list", "Formats of the final state (3dm: Rhino, needs the rhino extra).",
-                               default=["vtu", "xdmf"], choices=("vtu", "vtk", "xdmf", "3dm")),
-            },
-        ),
-    },
-)
+# which tables and [analysis] keys apply where: name -> (allowed analyses, where it applies, in words)
+_TABLE_SCOPE = {
+    "members": (BAR_ROPE, "[nodes] and mesh-file scenes"),
+    "prescribed": (BAR_ROPE, "[nodes] and mesh-file scenes"),
+    "loads": (BAR_ROPE, "[nodes] and mesh-file scenes"),
+    "effects": (BAR_ROPE, "[nodes] and mesh-file scenes"),
+    "ropes": (FORM_FINDING, "form finding on a planform grid"),
+    "rods": (("indentation", "form_and_buckle"), "the hemisphere and form_and_buckle"),
+    "masses": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding"),
+    "supports": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding (the hemisphere's rod ends are "
+                                          "pinned on its equator)"),
+    "gravity": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding"),
+    "imperfection": (BAR_ROPE + ("indentation",), "bar/rope structures and the hemisphere"),
+}
+_ANALYSIS_SCOPE = {
+    "load_factor": BAR_ROPE, "prescribed": BAR_ROPE, "start": BAR_ROPE,
+    "merit": ("static",), "max_iterations": ("static",), "rtol": ("static", "continuation"),
+    "linear_solver": ("static", "dynamics"),
+    "continuation": ("continuation",), "dynamics": ("dynamics",),
+    "relaxation": FORM_FINDING, "start_shape": FORM_FINDING, "lengths": ("mra",),
+    "buckling": ("form_and_buckle",), "indentation": ("indentation",),
+}
 
 
-def is_form_finding(data: dict) -> bool:
-    """A form-finding (MRA) scene describes a planform ``[geometry]`` instead of ``[nodes]``."""
-    analysis = data.get("analysis")
-    return (isinstance(analysis, dict) and analysis.get("type") == "mra") or (
-        "geometry" in data and "nodes" not in data)
+def _source(data: dict) -> str:
+    """'nodes', 'planform', 'hemisphere' or 'file' (after [geometry] was validated)."""
+    if data.get("nodes") is not None:
+        return "nodes"
+    kind = data["geometry"]["type"]
+    return "planform" if kind in PLANFORMS else kind
 
 
-def parse_form_finding(data: dict) -> dict:
-    """Validate an MRA form-finding scene (keys in ``validation/mra/README.md``)."""
-    from .mra.case import _merge
+def _legacy(data: dict) -> tuple[dict, dict]:
+    """Split off the tables of the older MRA layout, validated where they stand."""
+    data = dict(data)
+    found = {}
+    for old, new in _LEGACY_ANALYSIS.items():
+        if old not in data:
+            continue
+        analysis = data.get("analysis")
+        if isinstance(analysis, dict) and new in analysis:
+            raise SceneError(old, f"given twice: as [{old}] and as [analysis.{new}]; keep one")
+        table = _LEGACY_BUCKLING if old == "buckling" else SCENE.keys["analysis"].keys[new]
+        given = data.pop(old)
+        found[new] = (check_table(old, given, table), set(given))
+    if isinstance(data.get("loads"), dict):
+        loads = data.pop("loads")
+        extra = sorted(set(loads) - {"gravity"})
+        if extra:
+            raise SceneError(f"loads.{extra[0]}", "a [loads] table takes only 'gravity' (nodal forces are "
+                                                  "[[loads]] entries)")
+        if "gravity" in loads:
+            if "gravity" in data:
+                raise SceneError("loads.gravity", "given twice: as [loads] gravity and as [gravity] g; keep one")
+            data["gravity"] = {"g": loads["gravity"]}
+    return data, found
 
-    analysis = data.get("analysis", {})
-    if not isinstance(analysis, dict) or set(analysis) - {"type"}:
-        raise SceneError("analysis", "a form-finding scene takes only analysis.type = 'mra'; its solver "
-                         "settings go in [solver]")
-    from .formbuckle import _merge_buckling
 
-    params = {k: v for k, v in data.items() if k not in ("analysis", "buckling")}
-    merged = _merge(params)
-    buckling = _merge_buckling(data["buckling"]) if "buckling" in data else None
-    title = data.get("title") or data.get("description") or merged["name"]
-    if not isinstance(title, str):
-        raise SceneError("title", f"got {title!r}; expected a string")
-    if buckling is not None:
-        return {"title": title, "analysis": {"type": "form_and_buckle"}, "mra": {**params, "buckling": data["buckling"]}}
-    return {"title": title, "analysis": {"type": "mra"}, "mra": params}
+def parse_scene(data: dict, base_dir=None) -> dict:
+    """Validate a scene given as a dictionary; return it with defaults filled.
 
-
-def parse_scene(data: dict) -> dict:
-    """Validate a scene given as a dictionary; return it with defaults filled."""
-    if is_form_finding(data):
-        return parse_form_finding(data)
+    Parameters
+    ----------
+    data : dict
+        The scene as read from TOML.
+    base_dir : path-like, optional
+        Folder that relative file names (``geometry.file``) are relative to;
+        default the working directory.
+    """
+    if not isinstance(data, dict):
+        raise SceneError("scene", f"expected a table, got {type(data).__name__}")
+    data, legacy = _legacy(data)
     scene = check_table("", data, SCENE)
-    n = len(scene["nodes"]["coordinates"])
+    if scene["nodes"] is None and scene["geometry"] is None:
+        raise SceneError("geometry", "a scene needs its geometry: a [nodes] table or a [geometry] table")
+    if scene["nodes"] is not None and scene["geometry"] is not None:
+        raise SceneError("geometry", "give either [nodes] or [geometry], not both")
+    for new, (table, given) in legacy.items():
+        if new == "buckling":
+            rods = {k: table.pop(k) for k in _ROD_KEYS}
+            given = given & set(_ROD_KEYS)
+            clash = given & set((data.get("rods") or {}))
+            if clash:
+                raise SceneError(f"buckling.{sorted(clash)[0]}", "given twice: in [buckling] and in [rods]")
+            scene["rods"] = {**(scene["rods"] or check_table("rods", {}, SCENE.keys["rods"])),
+                             **{k: rods[k] for k in given}}
+        scene["analysis"][new] = table
+    source = _source(scene)
+    scene["source"] = source
+    scene["single_support"] = isinstance(data.get("supports"), dict)
+    _check_scope(data, scene, source, "buckling" in legacy)
+    _check_imperfection(scene)
+    if source in ("nodes", "file"):
+        _check_bar_rope(scene, base_dir)
+    elif source == "planform":
+        _check_planform(scene)
+    else:
+        _check_hemisphere(scene)
+    return scene
+
+
+def _check_scope(data: dict, scene: dict, source: str, legacy_buckling: bool) -> None:
+    allowed = ANALYSES_OF[source]
+    a = scene["analysis"]
+    raw = data.get("analysis") or {}
+    if a["type"] is None:
+        a["type"] = "form_and_buckle" if source == "planform" and ("buckling" in raw or legacy_buckling) \
+            else allowed[0]
+    elif a["type"] not in allowed:
+        what = {"nodes": "a [nodes] scene", "file": "a mesh-file scene", "planform": "a planform grid",
+                "hemisphere": "the hemisphere"}[source]
+        raise SceneError("analysis.type", f"{a['type']!r} does not apply to {what}; allowed: "
+                         + ", ".join(repr(t) for t in allowed))
+    t = a["type"]
+    for name, (analyses, where) in _TABLE_SCOPE.items():
+        if name in data and t not in analyses:
+            raise SceneError(name, f"does not apply to analysis {t!r}; it applies to {where}")
+    for name, analyses in _ANALYSIS_SCOPE.items():
+        if name in raw and t not in analyses:
+            raise SceneError(f"analysis.{name}", f"does not apply to analysis {t!r}; it applies to "
+                             + ", ".join(repr(x) for x in analyses))
+    if t not in BAR_ROPE and "scaled" in (data.get("gravity") or {}):
+        raise SceneError("gravity.scaled", f"does not apply to analysis {t!r}")
+
+
+def _mesh_of(scene: dict, base_dir):
+    from .io.mesh_import import read_mesh
+
+    g = scene["geometry"]
+    path = Path(g["file"])
+    if not path.is_absolute():
+        path = Path(base_dir or ".") / path
+    try:
+        return read_mesh(path)
+    except ModelError as exc:
+        raise SceneError("geometry.file", str(exc)) from None
+
+
+def _check_bar_rope(scene: dict, base_dir) -> None:
+    if scene["source"] == "file":
+        mesh = _mesh_of(scene, base_dir)
+        scene["mesh"] = mesh
+        n = len(mesh.points)
+    else:
+        n = len(scene["nodes"]["coordinates"])
+    if not scene["members"]:
+        raise SceneError("members", "a bar/rope scene needs at least one [[members]] group")
     for i, m in enumerate(scene["members"]):
-        if m["kind"] == "bar" and m["slack"] != 0.0:
+        if m["kind"] == "bar" and np.any(np.asarray(m["slack"]) != 0.0):
             raise SceneError(f"members[{i}].slack", "a slack coefficient applies to ropes only (kind = 'rope')")
-        for k in ("EA", "mass_per_length", "slack", "rest_length"):
-            v = m[k]
-            if isinstance(v, np.ndarray) and len(v) != len(m["connectivity"]):
-                raise SceneError(f"members[{i}].{k}", f"has {len(v)} values for {len(m['connectivity'])} members")
+        if scene["source"] == "nodes":
+            if m["connectivity"] is None:
+                raise SceneError(f"members[{i}].connectivity", "this key is required with [nodes]")
+            if m["cells"] is not None:
+                raise SceneError(f"members[{i}].cells", "selects cells of a mesh file; this scene has [nodes]")
+        elif m["connectivity"] is not None and m["cells"] is not None:
+            raise SceneError(f"members[{i}].cells", "give connectivity or cells, not both")
+    for i, sup in enumerate(scene["supports"]):
+        for key in ("positions", "frames"):
+            if sup[key]:
+                raise SceneError(_where(scene, i, key), "applies to planform grids (form finding)")
+        if scene["source"] == "nodes" and sup["groups"]:
+            raise SceneError(_where(scene, i, "groups"), "named node sets come from a planform grid or a mesh file; "
+                             "this scene has [nodes]: use nodes or z")
+        _need_some(scene, sup, i, ("nodes", "groups", "z"))
     c = scene["analysis"]["continuation"]
     if scene["analysis"]["type"] == "continuation":
         if c["initial_increment"] is None and c["parameter_min"] is None and c["parameter_max"] is None:
@@ -199,17 +239,79 @@ def parse_scene(data: dict) -> dict:
                              "the path needs a scale: give parameter_max, parameter_min or initial_increment")
         if c["initial_increment"] is not None and c["initial_increment"] == 0.0:
             raise SceneError("analysis.continuation.initial_increment", "must not be zero")
-    mon = c["monitor_node"]
-    if mon is not None and mon >= n:
-        raise SceneError("analysis.continuation.monitor_node", f"node {mon} is out of range (the scene has {n} nodes)")
+    d = scene["analysis"]["dynamics"]
+    if scene["analysis"]["type"] == "dynamics":
+        for key in ("time_step", "duration"):
+            if d[key] is None:
+                raise SceneError(f"analysis.dynamics.{key}", "this key is required for analysis 'dynamics'")
+    for where, mon in (("continuation", c["monitor_node"]), ("dynamics", d["monitor_node"])):
+        if mon is not None and mon >= n:
+            raise SceneError(f"analysis.{where}.monitor_node",
+                             f"node {mon} is out of range (the scene has {n} nodes)")
     start = scene["analysis"]["start"]
     if start is not None and len(start) != n:
         raise SceneError("analysis.start", f"has {len(start)} points; the scene has {n} nodes")
-    return scene
+
+
+def _where(scene: dict, i: int, key: str = "") -> str:
+    """The scene key of supports entry ``i`` as the file wrote it ([supports] or [[supports]])."""
+    base = "supports" if scene.get("single_support") else f"supports[{i}]"
+    return f"{base}.{key}" if key else base
+
+
+def _need_some(scene: dict, sup: dict, i: int, keys) -> None:
+    if all(sup[k] is None or (isinstance(sup[k], list) and not sup[k]) for k in keys):
+        raise SceneError(_where(scene, i), "names no nodes: give " + ", ".join(keys[:-1]) + f" or {keys[-1]}")
+
+
+def _check_planform(scene: dict) -> None:
+    if not scene["supports"]:
+        raise SceneError("supports", "a hanging net needs suspension points: a [[supports]] entry")
+    dofs = {s["dofs"] for s in scene["supports"]}
+    if len(dofs) > 1:
+        raise SceneError("supports", f"a hanging net holds the same components at every suspension point; got "
+                         f"dofs {sorted(dofs)}")
+    for i, sup in enumerate(scene["supports"]):
+        if sup["z"] is not None:
+            raise SceneError(_where(scene, i, "z"), "applies to [nodes] and mesh-file scenes; a planform is flat")
+        unknown = sorted(set(sup["groups"] or ()) - set(GRID_GROUPS))
+        if unknown:
+            raise SceneError(_where(scene, i, "groups"), f"a planform grid has no node set {unknown[0]!r}; its sets: "
+                             + ", ".join(repr(g) for g in GRID_GROUPS))
+        _need_some(scene, sup, i, ("nodes", "groups", "positions", "frames"))
+    slack = scene["ropes"]["slack"] if scene["ropes"] else 0.0
+    if isinstance(slack, np.ndarray) and slack.shape != (2,):
+        raise SceneError("ropes.slack", f"got {len(slack)} values; expected one number or [sc_i, sc_j]")
+    if np.any(np.asarray(slack) <= -1.0):
+        raise SceneError("ropes.slack", f"got {slack!r}; expected numbers > -1")
+    st = scene["analysis"]["start_shape"]
+    if st["type"] == "nurbs" and st["depth"] is None and st["control_heights"] is None:
+        raise SceneError("analysis.start_shape.depth", "a 'nurbs' start needs a depth or control_heights")
+
+
+def _check_imperfection(scene: dict) -> None:
+    imp = scene["imperfection"]
+    if imp is None:
+        return
+    if imp["type"] == "mode" and imp["amplitude"] == 0.0:
+        raise SceneError("imperfection.amplitude", "got 0.0; expected a non-zero number")
+    if imp["type"] != "mode" and imp["amplitude"] <= 0.0:
+        raise SceneError("imperfection.amplitude", f"got {imp['amplitude']!r}; expected a number > 0 for type "
+                         f"{imp['type']!r}")
+
+
+def _check_hemisphere(scene: dict) -> None:
+    n = scene["geometry"]["n"]
+    if n % 2 == 0 or n < 3:
+        raise SceneError("geometry.n", f"got {n}; the hemisphere needs an odd number of rods per direction >= 3")
+    imp = scene["imperfection"]
+    if imp is not None and imp["type"] != "forces":
+        raise SceneError("imperfection.type", f"got {imp['type']!r}; the hemisphere takes only 'forces' (random "
+                         "dead forces, as in the paper)")
 
 
 def load_scene(path) -> dict:
-    """Read and validate a TOML scene file."""
+    """Read and validate a TOML scene file (relative file names are relative to its folder)."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -219,7 +321,12 @@ def load_scene(path) -> dict:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(str(path), f"not valid TOML: {exc}") from None
-    return parse_scene(data)
+    scene = parse_scene(data, base_dir=path.parent)
+    scene["name"] = scene["name"] or path.stem
+    return scene
+
+
+# -- bar and rope structures ------------------------------------------------------------------
 
 
 def _model_error_as_scene_error(where: str):
@@ -235,20 +342,85 @@ def _model_error_as_scene_error(where: str):
     return _Ctx()
 
 
-def build_structure(scene: dict) -> Structure:
-    """The Structure a validated scene describes."""
-    with _model_error_as_scene_error("nodes.coordinates"):
-        s = Structure(scene["nodes"]["coordinates"])
+def reference_nodes(scene: dict) -> np.ndarray:
+    """Node coordinates of a bar/rope scene as given (before any imperfection)."""
+    if scene["source"] == "file":
+        return scene["mesh"].points.copy()
+    return np.array(scene["nodes"]["coordinates"], dtype=float)
+
+
+def member_connectivity(scene: dict) -> list[np.ndarray]:
+    """End nodes of every member group: as given, or the mesh edges of the listed cells."""
+    out = []
+    taken = np.zeros(0, dtype=np.int64)
+    n = len(reference_nodes(scene))
     for i, m in enumerate(scene["members"]):
+        if m["connectivity"] is not None:
+            out.append(m["connectivity"])
+            continue
+        edges = scene["mesh"].edges(m["cells"])
+        code = edges[:, 0] * n + edges[:, 1]
+        keep = ~np.isin(code, taken)
+        if not keep.any():
+            held = ", ".join(sorted(scene["mesh"].cells))
+            raise SceneError(f"members[{i}].cells", f"selects no edges (the mesh has cells: {held}; edges taken "
+                             "by an earlier group are left out)")
+        taken = np.concatenate([taken, code[keep]])
+        out.append(edges[keep])
+    return out
+
+
+def support_nodes(scene: dict, nodes: np.ndarray) -> list[np.ndarray]:
+    """Node numbers of every [[supports]] entry of a bar/rope scene."""
+    out = []
+    for i, sup in enumerate(scene["supports"]):
+        chosen = []
+        if sup["nodes"] is not None:
+            chosen.append(sup["nodes"])
+        for name in sup["groups"] or []:
+            mesh = scene["mesh"]
+            if name == "boundary":
+                chosen.append(mesh.boundary_nodes())
+            elif name in mesh.point_sets:
+                chosen.append(mesh.point_sets[name])
+            else:
+                raise SceneError(_where(scene, i, "groups"), f"the mesh has no node set {name!r}; available: "
+                                 + ", ".join(["'boundary'"] + [repr(k) for k in sorted(mesh.point_sets)]))
+        if sup["z"] is not None:
+            at = np.flatnonzero(np.abs(nodes[:, 2] - sup["z"]) <= sup["z_tolerance"])
+            if not at.size:
+                raise SceneError(_where(scene, i, "z"), f"no node lies at z = {sup['z']} (within "
+                                 f"{sup['z_tolerance']} m); the nodes span z = {nodes[:, 2].min():.6g} .. "
+                                 f"{nodes[:, 2].max():.6g}")
+            chosen.append(at)
+        out.append(np.unique(np.concatenate(chosen)))
+        if not out[-1].size:
+            raise SceneError(_where(scene, i), "selects no nodes")
+    return out
+
+
+def build_structure(scene: dict, nodes: np.ndarray | None = None) -> Structure:
+    """The Structure a validated bar/rope scene describes (``nodes`` overrides its coordinates)."""
+    nodes = reference_nodes(scene) if nodes is None else nodes
+    where = "geometry.file" if scene["source"] == "file" else "nodes.coordinates"
+    with _model_error_as_scene_error(where):
+        s = Structure(nodes)
+    for i, (m, conn) in enumerate(zip(scene["members"], member_connectivity(scene))):
         name = m["name"] or f"{m['kind']}s{i}"
+        for k in ("EA", "mass_per_length", "slack", "rest_length"):
+            v = m[k]
+            if isinstance(v, np.ndarray) and len(v) != len(conn):
+                raise SceneError(f"members[{i}].{k}", f"has {len(v)} values for {len(conn)} members")
         with _model_error_as_scene_error(f"members[{i}]"):
             if m["kind"] == "bar":
-                s.add_bars(m["connectivity"], m["EA"], m["mass_per_length"], m["rest_length"], name=name)
+                s.add_bars(conn, m["EA"], m["mass_per_length"], m["rest_length"], name=name)
             else:
-                s.add_ropes(m["connectivity"], m["EA"], m["slack"], m["mass_per_length"], m["rest_length"], name=name)
-    for i, sup in enumerate(scene["supports"]):
-        with _model_error_as_scene_error(f"supports[{i}]"):
-            s.fix(sup["nodes"], sup["dofs"])
+                s.add_ropes(conn, m["EA"], m["slack"], m["mass_per_length"], m["rest_length"], name=name)
+    if scene["masses"] is not None and scene["masses"]["node_mass"] > 0:
+        s.add_point_mass(np.arange(s.n_nodes), scene["masses"]["node_mass"])
+    for i, (sup, at) in enumerate(zip(scene["supports"], support_nodes(scene, np.asarray(nodes)))):
+        with _model_error_as_scene_error(_where(scene, i)):
+            s.fix(at, sup["dofs"])
     for i, p in enumerate(scene["prescribed"]):
         with _model_error_as_scene_error(f"prescribed[{i}]"):
             s.prescribe(p["nodes"], p["direction"])
@@ -272,11 +444,27 @@ def default_effects(scene: dict) -> list[str]:
         names.append("loads")
     if scene["gravity"] is not None:
         names.append("gravity")
+    if scene["imperfection"] is not None and scene["imperfection"]["type"] == "forces":
+        names.append("imperfection")
     return names
+
+
+def random_forces(structure: Structure, amplitude: float, seed: int) -> np.ndarray:
+    """Random dead forces on the free node translations with total norm ``amplitude``."""
+    n = structure.n_nodes
+    free = ~structure.constrained_mask[: 3 * n]
+    g = np.random.default_rng(seed).normal(size=3 * n) * free
+    f = np.zeros(structure.n_dof)
+    norm = np.linalg.norm(g)
+    if norm > 0:
+        f[: 3 * n] = amplitude * g / norm
+    return f
 
 
 def build_system(scene: dict, structure: Structure) -> System:
     """A System with exactly the effects the scene lists (or calls for)."""
+    from .effects.loads import ConstantForce
+
     include = (scene["effects"] or {}).get("include") or default_effects(scene)
     effects = []
     kind_of = {"axial": "bar", "rope": "rope"}
@@ -291,5 +479,137 @@ def build_system(scene: dict, structure: Structure) -> System:
         if structure.gravity is None:
             raise SceneError("effects.include", "lists 'gravity' but the scene has no [gravity] table")
         effects.append(gravity_effect(structure, scales_with_load=scene["gravity"]["scaled"]))
+    if "imperfection" in include:
+        imp = scene["imperfection"]
+        if imp is None or imp["type"] != "forces":
+            raise SceneError("effects.include", "lists 'imperfection' but the scene has no [imperfection] of type "
+                             "'forces'")
+        f = random_forces(structure, imp["amplitude"], imp["seed"])
+        effects.append(ConstantForce(f, scales_with_load=False, name="imperfection"))
     with _model_error_as_scene_error("supports"):
         return System(structure, effects)
+
+
+@dataclass
+class Model:
+    """A bar/rope scene built: its structure, system and imperfection.
+
+    Attributes
+    ----------
+    structure : Structure
+    system : System
+    imperfection : dict
+        What was applied (JSON-ready; empty without an imperfection).
+    """
+
+    structure: Structure
+    system: System
+    imperfection: dict = field(default_factory=dict)
+
+
+def _scaled(delta: np.ndarray, amplitude: float, where: str) -> np.ndarray:
+    """``delta`` scaled so that its largest node movement is ``|amplitude|`` (sign kept)."""
+    size = np.linalg.norm(delta, axis=1).max() if len(delta) else 0.0
+    if size == 0:
+        raise SceneError(where, "there is no free node to move")
+    return delta * (amplitude / size)
+
+
+def _mode_shape(scene: dict, structure: Structure, system: System) -> tuple[np.ndarray, float]:
+    """Lowest eigenmode of the free tangent (translations per node) and its eigenvalue."""
+    from .solvers import solve_static
+    from .solvers.stability import critical_modes
+
+    imp = scene["imperfection"]
+    q = system.state(base=start_state(scene, structure))
+    if imp["load_factor"] is not None:
+        res = solve_static(system, q0=q, lam=imp["load_factor"], mu=scene["analysis"]["prescribed"])
+        if not res.success:
+            raise SceneError("imperfection.load_factor", f"no equilibrium at load factor {imp['load_factor']}: "
+                             f"{res.message}")
+        q = res.q
+    values, vectors = critical_modes(system.tangent_free(q), k=1)
+    full = np.zeros(structure.n_dof)
+    full[system.free] = vectors[:, 0]
+    return full[: 3 * structure.n_nodes].reshape(-1, 3), float(values[0])
+
+
+def build_model(scene: dict) -> Model:
+    """Structure and System of a bar/rope scene, with its imperfection applied."""
+    structure = build_structure(scene)
+    system = build_system(scene, structure)
+    imp = scene["imperfection"]
+    if imp is None or imp["type"] == "forces":
+        note = {} if imp is None else {"type": "forces", "amplitude_N": imp["amplitude"], "seed": imp["seed"]}
+        return Model(structure, system, note)
+    nodes = structure.nodes
+    free = ~structure.constrained_mask[: 3 * structure.n_nodes].reshape(-1, 3)
+    if imp["type"] == "random":
+        delta = np.random.default_rng(imp["seed"]).normal(size=nodes.shape) * free
+        note = {"type": "random", "seed": imp["seed"]}
+    else:
+        delta, value = _mode_shape(scene, structure, system)
+        note = {"type": "mode", "eigenvalue": value, "load_factor": imp["load_factor"]}
+    delta = _scaled(delta, imp["amplitude"], "imperfection.amplitude")
+    note.update(amplitude_m=imp["amplitude"], max_node_movement_m=float(np.linalg.norm(delta, axis=1).max()))
+    structure = build_structure(scene, nodes + delta)
+    return Model(structure, build_system(scene, structure), note)
+
+
+def start_state(scene: dict, structure: Structure):
+    """The start state of a bar/rope analysis (None: the reference)."""
+    start = scene["analysis"]["start"]
+    if start is None:
+        return None
+    q0 = structure.reference_state()
+    q0[: 3 * structure.n_nodes] = start.ravel()
+    return q0
+
+
+# -- form finding -----------------------------------------------------------------------
+
+
+_GEOMETRY_KEYS = {
+    "rectangle": ("length_x", "length_y", "n_i", "n_j", "origin"),
+    "ellipse": ("a", "b", "n", "center"),
+    "disk": ("radius", "n", "center"),
+    "bspline": ("control_points", "degree_u", "degree_v", "weights", "n_i", "n_j"),
+}
+
+
+def _plain(v):
+    return v.tolist() if isinstance(v, np.ndarray) else v
+
+
+def mra_params(scene: dict) -> dict:
+    """The parameters of :func:`shellform.mra.run_mra_case` for a validated form-finding scene."""
+    g = scene["geometry"]
+    geometry = {"type": g["type"], **{k: _plain(g[k]) for k in _GEOMETRY_KEYS[g["type"]] if g[k] is not None}}
+    supports = {"dofs": scene["supports"][0]["dofs"]}
+    for key in ("nodes", "groups", "positions"):
+        parts = [_plain(s[key]) for s in scene["supports"] if s[key] is not None]
+        if parts:
+            supports[key] = [x for p in parts for x in p]
+    frames = [{"from": f["from"].tolist(), "to": f["to"].tolist(), "rise": f["rise"]}
+              for s in scene["supports"] for f in s["frames"]]
+    if frames:
+        supports["frames"] = frames
+    ropes = dict(scene["ropes"] or check_table("ropes", {}, SCENE.keys["ropes"]))
+    ropes["slack"] = _plain(ropes["slack"])
+    masses = scene["masses"] or {"node_mass": 0.0}
+    gravity = scene["gravity"]["g"] if scene["gravity"] is not None else [0.0, 0.0, -9.81]
+    a = scene["analysis"]
+    solver = {k: v for k, v in a["relaxation"].items() if k != "checkpoint_interval"}
+    start = {k: _plain(v) for k, v in a["start_shape"].items()}
+    return {
+        "name": scene["name"] or "mra",
+        "geometry": geometry,
+        "supports": supports,
+        "ropes": ropes,
+        "masses": dict(masses),
+        "loads": {"gravity": _plain(gravity)},
+        "solver": solver,
+        "start": start,
+        "lengths": dict(a["lengths"]),
+        "output": {"meshes": scene["output"]["meshes"]},
+    }

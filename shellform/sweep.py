@@ -73,8 +73,11 @@ def set_value(data: dict, key: str, value) -> None:
         raise SceneError(key, "the scene has no such entry") from None
 
 
-def expand(raw: dict, params: list[tuple[str, list]]) -> list[tuple[dict, dict]]:
-    """All combinations as (assignment, scene) pairs; each scene is validated now."""
+def expand(raw: dict, params: list[tuple[str, list]], base_dir=None) -> list[tuple[dict, dict]]:
+    """All combinations as (assignment, scene) pairs; each scene is validated now.
+
+    ``base_dir`` is the folder relative file names of the scene are relative to.
+    """
     from .scene import parse_scene
 
     out = []
@@ -85,20 +88,20 @@ def expand(raw: dict, params: list[tuple[str, list]]) -> list[tuple[dict, dict]]
             set_value(data, k, v)
         assignment = dict(zip(keys, combo))
         try:
-            parse_scene(data)
+            parse_scene(data, base_dir)
         except SceneError as exc:
             raise SceneError(exc.key, f"{exc.problem} (in the sweep case {assignment})") from None
         out.append((assignment, data))
     return out
 
 
-def _run_case(data: dict, out_dir: str) -> dict:
+def _run_case(data: dict, out_dir: str, base_dir: str) -> dict:
     """Run one scene (in a worker) and return its summary; failures are reported, not raised."""
     from .pipeline import run_scene
     from .scene import parse_scene
 
     try:
-        return run_scene(parse_scene(data), out_dir)
+        return run_scene(parse_scene(data, base_dir), out_dir)
     except Exception as exc:  # a worker must hand back a row, whatever happened
         return {"converged": False, "message": f"{type(exc).__name__}: {exc}"}
 
@@ -137,7 +140,8 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
     scene_path = Path(scene_path)
     load_scene(scene_path)  # the base scene must be valid on its own
     raw = tomllib.loads(scene_path.read_text())
-    cases = expand(raw, [parse_param(p) for p in params])
+    base_dir = str(scene_path.resolve().parent)
+    cases = expand(raw, [parse_param(p) for p in params], base_dir)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     progress(f"sweep: {len(cases)} cases of {scene_path.name}")
@@ -149,7 +153,7 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
-        futures = [client.submit(_run_case, data, str(out / f"case_{i:03d}"), pure=False)
+        futures = [client.submit(_run_case, data, str(out / f"case_{i:03d}"), base_dir, pure=False)
                    for i, (_, data) in enumerate(cases)]
         rows = []
         for i, ((assignment, _), fut) in enumerate(zip(cases, futures)):

@@ -1,23 +1,13 @@
 """Every scene shipped with shellform runs end to end and its outputs read back."""
 
 import json
-import math
 
 import meshio
 import pytest
+from helpers import all_finite
 
 from shellform.cli import builtin_scenes, main
 from shellform.io.table import read_csv
-
-
-def finite(obj):
-    if isinstance(obj, float):
-        return math.isfinite(obj)
-    if isinstance(obj, dict):
-        return all(finite(v) for v in obj.values())
-    if isinstance(obj, list):
-        return all(finite(v) for v in obj)
-    return True
 
 
 @pytest.mark.parametrize("name", builtin_scenes())
@@ -25,7 +15,7 @@ def test_builtin_scene_runs_and_outputs_read_back(name, tmp_path):
     assert main(["run", name, "--out", str(tmp_path), "--quiet"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] is True
-    assert finite(summary)
+    assert all_finite(summary)
     for name in summary.get("files", []):
         path = tmp_path / name
         assert path.exists(), name

@@ -7,7 +7,8 @@ import json
 import numpy as np
 from test_continuation_models import H, L, P_CR, truss_load, von_mises
 
-from shellform.path import plot_path, read_path_csv, run_continuation_case, write_path_csv
+from shellform.io.table import plot_path, read_path_csv, write_path_csv
+from shellform.pipeline import run_continuation_case
 from shellform.solvers.continuation import TABLE_COLUMNS, trace_path
 
 

@@ -1,10 +1,18 @@
-"""Tables (CSV) and curves (PNG) written atomically."""
+"""Tables (CSV) and curves (PNG), written atomically.
+
+:func:`write_csv` and :func:`read_csv` round-trip any table of equal-length
+columns exactly (floats are written with ``repr``). :func:`plot_curve` draws a
+force-displacement curve with its stable and unstable parts and marked
+points; :func:`write_path_csv` and :func:`plot_path` apply them to the table of
+a traced equilibrium path.
+"""
 
 from __future__ import annotations
 
 import csv
 import os
 import tempfile
+import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -21,15 +29,32 @@ def _temporary(path: Path, suffix: str) -> str:
 def _cell(v):
     if isinstance(v, (bool, np.bool_)):
         return int(v)  # 1/0 reads back as a number everywhere
+    if isinstance(v, (int, np.integer)):
+        return int(v)
     if isinstance(v, (float, np.floating)):
-        return f"{v:.10g}"
+        return repr(float(v))  # shortest text that reads back to the same double
     return v
 
 
 def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None = None) -> Path:
-    """Write equal-length columns as CSV with a header row."""
+    """Write equal-length columns as CSV with a header row.
+
+    Parameters
+    ----------
+    table : mapping of column name to sequence
+    columns : sequence of str, optional
+        Columns to write, in order (default: all of ``table``).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     path = Path(path)
-    columns = list(columns or table.keys())
+    columns = list(columns if columns is not None else table.keys())
+    missing = [c for c in columns if c not in table]
+    if missing:
+        raise KeyError(f"table has no column(s) {missing}; available: {sorted(table)}")
     lengths = {len(table[c]) for c in columns}
     if len(lengths) > 1:
         raise ValueError(f"columns have different lengths: {sorted(lengths)}")
@@ -47,22 +72,60 @@ def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None
     return path
 
 
+def _column(values: list[str]) -> np.ndarray:
+    for dtype in (np.int64, float):
+        try:
+            return np.array([dtype(v) for v in values], dtype=dtype)
+        except ValueError:
+            continue
+    return np.array(values)
+
+
 def read_csv(path) -> dict[str, np.ndarray]:
-    """Read a CSV written by :func:`write_csv`: numeric columns as floats, others as strings."""
+    """Read a CSV written by :func:`write_csv`.
+
+    Columns of integers come back as integers, other numeric columns as
+    floats (exactly the values written), the rest as strings.
+    """
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
     head, body = rows[0], rows[1:]
-    out = {}
-    for i, c in enumerate(head):
-        col = [r[i] for r in body]
-        try:
-            out[c] = np.array([float(v) for v in col])
-        except ValueError:
-            out[c] = np.array(col)
-    return out
+    return {c: _column([r[i] for r in body]) for i, c in enumerate(head)}
 
 
-def plot_curve(path, x, y, xlabel: str, ylabel: str, title: str = "", marks=(), stable=None) -> Path:
+def _figure(size=(6.4, 4.6)):
+    # a Figure with its own Agg canvas: no pyplot state, safe in worker threads
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, dpi=120)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: Path) -> Path:
+    tmp = _temporary(path, ".png")
+    try:
+        fig.savefig(tmp, format="png")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def plot_curve(
+    path,
+    x,
+    y,
+    xlabel: str,
+    ylabel: str,
+    title: str = "",
+    marks=(),
+    stable=None,
+    branch=None,
+    reference: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Path:
     """Plot a load-displacement curve to PNG.
 
     Parameters
@@ -70,40 +133,107 @@ def plot_curve(path, x, y, xlabel: str, ylabel: str, title: str = "", marks=(), 
     marks : iterable of (x, y, label)
         Points to mark (limit points, bifurcations, snaps).
     stable : array of bool, optional
-        Draw stable parts solid and unstable parts dashed.
+        Stable points; a segment touching an unstable point is drawn dashed.
+    branch : array of int, optional
+        Branch (or segment) of every point: one colour per branch, and no
+        line is drawn between points of different branches.
+    reference : (x, y), optional
+        A reference curve (an analytic solution) drawn in grey underneath.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     path = Path(path)
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    fig, ax = plt.subplots(figsize=(6.4, 4.4), dpi=120)
-    if stable is None:
-        ax.plot(x, y, "-", color="C0", lw=1.5)
-    else:
-        stable = np.asarray(stable, dtype=bool)
-        ys = np.where(stable, y, np.nan)
-        yu = np.where(~stable | np.r_[~stable[1:], False] | np.r_[False, ~stable[:-1]], y, np.nan)
-        ax.plot(x, yu, "--", color="C3", lw=1.2, label="unstable")
-        ax.plot(x, ys, "-", color="C0", lw=1.5, label="stable")
-        ax.legend(loc="best")
+    show_stability = stable is not None
+    stable = np.ones(len(x), dtype=bool) if stable is None else np.asarray(stable, dtype=bool)
+    branch = np.zeros(len(x), dtype=int) if branch is None else np.asarray(branch, dtype=int)
+    fig = _figure()
+    ax = fig.add_subplot(1, 1, 1)
+    if reference is not None:
+        ax.plot(reference[0], reference[1], color="0.6", lw=3, alpha=0.6, label="reference", zorder=1)
+    colors = ["C0", "C1", "C2", "C4", "C5"]
+    labelled = set()
+    # one line per run of consecutive segments with the same branch and stability
+    seg_unstable = ~(stable[:-1] & stable[1:])
+    seg_branch = branch[1:]
+    joined = branch[1:] == branch[:-1]
+    start = 0
+    n_seg = len(x) - 1
+    while start < n_seg:
+        if not joined[start]:
+            start += 1
+            continue
+        stop = start
+        while stop + 1 < n_seg and joined[stop + 1] and seg_unstable[stop + 1] == seg_unstable[start] \
+                and seg_branch[stop + 1] == seg_branch[start]:
+            stop += 1
+        b, unstable = int(seg_branch[start]), bool(seg_unstable[start])
+        key = (b, unstable)
+        label = None
+        if key not in labelled and (show_stability or branch.max() > 0):
+            words = ("unstable" if unstable else "stable") if show_stability else ""
+            label = words if branch.max() == 0 else f"branch {b}" + (f", {words}" if words else "")
+            labelled.add(key)
+        ax.plot(x[start:stop + 2], y[start:stop + 2], ls="--" if unstable else "-",
+                color=colors[b % len(colors)], lw=1.5, label=label, zorder=2)
+        start = stop + 1
+    ax.plot(x, y, ".", color="k", ms=2.5, zorder=3)
     for mx, my, label in marks:
-        ax.plot([mx], [my], "o", color="k", ms=4)
-        ax.annotate(label, (mx, my), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        ax.plot([mx], [my], "o", mfc="none", mec="red", ms=8, zorder=4)
+        ax.annotate(label, (mx, my), textcoords="offset points", xytext=(5, 5), fontsize=8)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if title:
-        ax.set_title(title)
+        ax.set_title(textwrap.fill(title, 70), fontsize=9)
     ax.grid(True, alpha=0.3)
+    if labelled or reference is not None:
+        ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
-    tmp = _temporary(path, ".png")
-    try:
-        fig.savefig(tmp)
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return _save(fig, path)
+
+
+# -- equilibrium paths ------------------------------------------------------------------
+
+
+def path_columns(result) -> list[str]:
+    """Default CSV columns of a traced path: the standard table columns, then the monitors."""
+    from ..solvers.continuation import TABLE_COLUMNS
+
+    return list(TABLE_COLUMNS) + list(result.monitors)
+
+
+def write_path_csv(result, path, columns: Sequence[str] | None = None) -> Path:
+    """Write the table of a :class:`~shellform.solvers.continuation.ContinuationResult`, one row per point."""
+    return write_csv(path, result.table, list(columns) if columns is not None else path_columns(result))
+
+
+read_path_csv = read_csv
+
+
+def plot_path(
+    result,
+    path,
+    x: str = "displacement",
+    y: str = "load",
+    xlabel: str | None = None,
+    ylabel: str | None = None,
+    title: str | None = None,
+    reference: tuple[np.ndarray, np.ndarray] | None = None,
+    event_x=None,
+) -> Path:
+    """Force-displacement plot of a traced path (PNG).
+
+    Stable stretches (no negative eigenvalue) are drawn solid, unstable ones
+    dashed, one colour per branch; limit and bifurcation points are marked.
+    ``x`` and ``y`` name columns of the path table; ``reference = (x, y)``
+    adds a curve (an analytic solution) in grey. When ``x`` is a monitor,
+    ``event_x(event)`` gives the abscissa of an event (else events of such a
+    plot are not marked).
+    """
+    table = result.table
+    marks = []
+    for e in result.events:
+        ex = event_x(e) if event_x is not None else getattr(e, x, None)
+        ey = getattr(e, y, None)
+        if ex is not None and ey is not None:
+            marks.append((float(ex), float(ey), f"{e.kind} point"))
+    return plot_curve(path, table[x], table[y], xlabel or x, ylabel or y, title or "", marks=marks,
+                      stable=np.asarray(table["n_negative"]) == 0, branch=table["branch"], reference=reference)
