@@ -116,6 +116,10 @@ def main(argv=None) -> int:
     except ShellformError as exc:
         print(f"shellform: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("shellform: interrupted; `shellform run ... --resume` continues from the last checkpoint",
+              file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

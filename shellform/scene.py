@@ -35,6 +35,7 @@ lists; ``mra_params`` gives the parameters of a form-finding scene for
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -81,6 +82,8 @@ _TABLE_SCOPE = {
     "gravity": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding"),
     "imperfection": (BAR_ROPE + ("indentation",), "bar/rope structures and the hemisphere"),
 }
+_ROD_SCOPE = {"rest_shape": ("form_and_buckle",), "joints": ("indentation",),
+              "joint_stiffness_ratio": ("indentation",)}
 _ANALYSIS_SCOPE = {
     "load_factor": BAR_ROPE, "prescribed": BAR_ROPE, "start": BAR_ROPE,
     "merit": ("static",), "max_iterations": ("static",), "rtol": ("static", "continuation"),
@@ -190,6 +193,15 @@ def _check_scope(data: dict, scene: dict, source: str, legacy_buckling: bool) ->
                              + ", ".join(repr(x) for x in analyses))
     if t not in BAR_ROPE and "scaled" in (data.get("gravity") or {}):
         raise SceneError("gravity.scaled", f"does not apply to analysis {t!r}")
+    rods = data.get("rods") or {}
+    legacy = data.get("buckling") if isinstance(data.get("buckling"), dict) else {}
+    for name, analyses in _ROD_SCOPE.items():
+        if (name in rods or name in legacy) and t not in analyses:
+            where = "rods" if name in rods else "buckling"
+            raise SceneError(f"{where}.{name}", f"does not apply to analysis {t!r}; it applies to "
+                             + ", ".join(repr(x) for x in analyses))
+    if "3dm" in scene["output"]["formats"] and importlib.util.find_spec("rhino3dm") is None:
+        raise SceneError("output.formats", "'3dm' needs rhino3dm: pip install 'shellform[rhino]'")
 
 
 def _mesh_of(scene: dict, base_dir):

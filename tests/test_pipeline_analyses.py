@@ -170,3 +170,46 @@ def test_resume_without_a_checkpoint_starts_from_the_start_shape(tmp_path):
     summary = run_scene(parse_scene(copy.deepcopy(NET)), tmp_path, progress=lines.append, resume=True)
     assert summary["converged"] and summary["start"]["type"] == "flat"
     assert any("no relaxation checkpoint" in m for m in lines)
+
+
+NET_TOML = """
+[geometry]
+type = "rectangle"
+length_x = 9.0
+length_y = 4.0
+n_i = 9
+n_j = 4
+[[supports]]
+positions = [[0, 0], [-1, 0], [0, -1], [-1, -1], [0, 2], [-1, 2]]
+[ropes]
+slack = 0.05
+[analysis.relaxation]
+rtol = 1e-8
+"""
+
+
+def test_command_line_resumes_a_relaxation_stopped_by_its_step_budget(tmp_path):
+    from shellform.cli import main
+
+    whole = run_scene(parse_scene(copy.deepcopy(NET)), tmp_path / "whole")
+    short, full = tmp_path / "short.toml", tmp_path / "full.toml"
+    short.write_text(NET_TOML + "max_iterations = 5\n")
+    full.write_text(NET_TOML)
+    out = str(tmp_path / "cli")
+    assert main(["run", str(short), "--out", out, "--quiet"]) == 1  # not at rest after 5 steps
+    assert main(["run", str(full), "--out", out, "--quiet", "--resume"]) == 0
+    xa = meshio.read(tmp_path / "whole" / "hanging.vtu").points
+    xb = meshio.read(tmp_path / "cli" / "hanging.vtu").points
+    assert whole["converged"] and np.abs(xa - xb).max() < 1e-8
+
+
+def test_command_line_reports_an_interruption(monkeypatch, capsys, tmp_path):
+    import shellform.pipeline
+    from shellform.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(shellform.pipeline, "run_scene", interrupted)
+    assert main(["run", "von_mises", "--out", str(tmp_path), "--quiet"]) == 130
+    assert "--resume" in capsys.readouterr().err
