@@ -412,9 +412,9 @@ def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = F
     files = [write_csv(out / "indentation.csv", table).name]
     files.append(plot_curve(
         out / "indentation.png", res.x, res.y, "apex displacement dD / R", "indentation force -sum(Fz) R^2 / EI",
-        f"{scene['title'] or 'hemisphere'} (mode {ind['mode']})",
+        scene["title"] or f"hemisphere, mode {ind['mode']}",
         marks=[(s.dD_over_R, s.force_before, f"snap {k + 1}") for k, s in enumerate(res.snaps)],
-        stable=res.n_negative == 0, branch=res.segment).name)
+        branch=res.segment, branch_name="segment").name)
     write_series(out / "indentation.xdmf", system, [(x, q, 1.0) for x, q in zip(res.x, res.path_states)])
     files.append("indentation.xdmf")
     configurations = []

@@ -125,6 +125,7 @@ def plot_curve(
     stable=None,
     branch=None,
     reference: tuple[np.ndarray, np.ndarray] | None = None,
+    branch_name: str = "branch",
 ) -> Path:
     """Plot a load-displacement curve to PNG.
 
@@ -139,6 +140,9 @@ def plot_curve(
         line is drawn between points of different branches.
     reference : (x, y), optional
         A reference curve (an analytic solution) drawn in grey underneath.
+    branch_name : str
+        What the legend calls a branch ("segment" for the stable stretches of
+        an indentation between snaps).
     """
     path = Path(path)
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
@@ -170,7 +174,7 @@ def plot_curve(
         label = None
         if key not in labelled and (show_stability or branch.max() > 0):
             words = ("unstable" if unstable else "stable") if show_stability else ""
-            label = words if branch.max() == 0 else f"branch {b}" + (f", {words}" if words else "")
+            label = words if branch.max() == 0 else f"{branch_name} {b}" + (f", {words}" if words else "")
             labelled.add(key)
         ax.plot(x[start:stop + 2], y[start:stop + 2], ls="--" if unstable else "-",
                 color=colors[b % len(colors)], lw=1.5, label=label, zorder=2)
