@@ -1,13 +1,22 @@
-"""Assembly of a rod network (stretch + bend + twist + joints) against one sparse solve of its tangent.
+"""Rod networks: assembly against one sparse solve, and static Newton iterations against axial stiffness.
 
-A square grid of rods crossing at penalty joints is bent into a dome-like
-shape with twisted edges (so every term of the bending and twisting
+``assembly``: a square grid of rods crossing at penalty joints is bent into a
+dome-like shape with twisted edges (so every term of the bending and twisting
 derivatives is active, including the transport from the stored frames). We
 time each effect's gradient and Hessian values, the full residual + free
 tangent assembly, and one factorisation + solve of that tangent, best of
 several repeats, all in one run.
 
-    python benchmarks/bench_rods.py [--rods 14 30] [--edges-per-cell 6] [--repeat 5]
+``newton``: static Newton (``solve_incremental``) with and without the stretch
+projection of the line search (:class:`shellform.solvers.newton.StretchProjection`),
+in the same run: the self-weight cantilever (alpha = 39.24, 40 edges, 3 load
+steps, halved when a step fails) for several ``EA L^2 / EI``, and the
+hemispherical gridshell raised by its rod ends along their paths (the
+paper's route, ``--hemisphere-n`` rods per direction, 40 steps). Reported:
+load steps taken, Newton iterations (total and largest per step), wall time.
+
+    python benchmarks/bench_rods.py [--part assembly newton] [--rods 14 30] [--edges-per-cell 6] [--repeat 5]
+                                    [--axial-ratios 1e3 1e5 1e7 1e9] [--hemisphere-n 5]
 """
 
 from __future__ import annotations
@@ -20,7 +29,9 @@ import numpy as np
 from shellform.model import Structure
 from shellform.rods.grids import square_grid_polylines
 from shellform.rods.network import RodNetwork, build_rod_system, circular_section, stack_polylines
+from shellform.rods.statics import solve_incremental
 from shellform.solvers.linear import SingularMatrixError, factorize
+from shellform.validation.cases_rods import G, clamped_stations, straight_rod
 
 
 def dome_network(n: int, edges_per_cell: int, span: float = 0.12):
@@ -73,19 +84,58 @@ def run(n, edges_per_cell, repeat):
     return row
 
 
+def newton_cantilever(axial_ratio: float, project: bool) -> dict:
+    s, net = straight_rod(clamped_stations(40), EA=axial_ratio, EI=1.0, mass_per_length=39.24 / G)
+    net.clamp(0, "start")
+    s.set_gravity((0.0, 0.0, -G))
+    system = build_rod_system(net, gravity_scaled=True)
+    t0 = time.perf_counter()
+    res = solve_incremental(system, lam=1.0, n_steps=3, project=project)
+    tip = res.q[3 * (s.n_nodes - 1): 3 * s.n_nodes]
+    return {"case": f"cantilever EA L^2/EI = {axial_ratio:.0e}", "success": res.success, "steps": res.n_steps,
+            "iterations": sum(res.iterations), "max_per_step": max(res.iterations, default=0),
+            "wall_s": time.perf_counter() - t0, "tip": (tip[0], tip[2])}
+
+
+def newton_hemisphere(n: int, project: bool) -> dict:
+    from shellform.gridshell.hemisphere import build_hemisphere
+
+    model = build_hemisphere(n, configuration="plane")
+    system = build_rod_system(model.network)
+    t0 = time.perf_counter()
+    res = solve_incremental(system, n_steps=40, paths=model.paths, t_end=1.0, rtol=1e-10, max_iter=60, project=project)
+    return {"case": f"hemisphere n = {n} by paths ({system.n_dof} DOFs)", "success": res.success, "steps": res.n_steps,
+            "iterations": sum(res.iterations), "max_per_step": max(res.iterations, default=0),
+            "wall_s": time.perf_counter() - t0, "tip": None}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--part", nargs="+", choices=["assembly", "newton"], default=["assembly", "newton"])
     parser.add_argument("--rods", type=int, nargs="+", default=[14, 30], help="rods per direction")
     parser.add_argument("--edges-per-cell", type=int, default=6)
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--axial-ratios", type=float, nargs="+", default=[1e3, 1e5, 1e7, 1e9])
+    parser.add_argument("--hemisphere-n", type=int, nargs="*", default=[5])
     args = parser.parse_args()
-    head = ["rods", "dof", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "assembly", "direct", "ldl"]
-    print(" ".join(f"{h:>11}" for h in head) + "   (times in s: gradient + Hessian values per effect;"
-          " assembly = residual + free tangent; solve = factorise + solve)")
-    for n in args.rods:
-        r = run(n, args.edges_per_cell, args.repeat)
-        print(" ".join(f"{r[h]:11d}" if isinstance(r[h], (int, np.integer)) else f"{r[h]:11.4f}" for h in head),
-              flush=True)
+    if "assembly" in args.part:
+        head = ["rods", "dof", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "assembly", "direct", "ldl"]
+        print(" ".join(f"{h:>11}" for h in head) + "   (times in s: gradient + Hessian values per effect;"
+              " assembly = residual + free tangent; solve = factorise + solve)")
+        for n in args.rods:
+            r = run(n, args.edges_per_cell, args.repeat)
+            print(" ".join(f"{r[h]:11d}" if isinstance(r[h], (int, np.integer)) else f"{r[h]:11.4f}" for h in head),
+                  flush=True)
+    if "newton" in args.part:
+        print("static Newton, straight line search (projection off) against the stretch projection (on)")
+        cases = [(newton_cantilever, a) for a in args.axial_ratios] + [(newton_hemisphere, n) for n in args.hemisphere_n]
+        for fn, arg in cases:
+            for project in (False, True):
+                r = fn(arg, project)
+                tip = "" if r["tip"] is None else f"  tip ({r['tip'][0]:.6f}, {r['tip'][1]:.6f})"
+                print(f"  {r['case']:42s} projection {'on ' if project else 'off'}: success {r['success']!s:5} "
+                      f"steps {r['steps']:4d}  Newton {r['iterations']:5d} (max {r['max_per_step']:3d} per step)  "
+                      f"wall {r['wall_s']:7.2f} s{tip}", flush=True)
 
 
 if __name__ == "__main__":

@@ -82,6 +82,7 @@ class System:
         self._ff_mask = (free_index[rows] >= 0) & (free_index[cols] >= 0)
         n_f = self.free.size
         self._ff = _Pattern(free_index[rows[self._ff_mask]], free_index[cols[self._ff_mask]], (n_f, n_f))
+        self._measures = None  # pattern of the held measures' Jacobian, built on first use
 
     # -- construction --------------------------------------------------------------
     def _pattern_triplets(self):
@@ -162,6 +163,37 @@ class System:
     def tangent_free(self, q: np.ndarray) -> sp.csr_matrix:
         """Tangent restricted to the free DOFs (CSR), assembled directly."""
         return self._ff.matrix(self._hessian_vals(q, self._ff_mask))
+
+    def held_measures(self, q: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix] | None:
+        """Values of the effects' held measures (:meth:`Effect.held_measures`) and their Jacobian on the free DOFs.
+
+        Returns ``(values (m,), J (m, n_free))`` or None when no effect has any.
+        Measures that depend on constrained DOFs only are left out (nothing
+        can change them).
+        """
+        parts = [m for m in (e.held_measures(q) for e in self.effects) if m is not None]
+        if not parts:
+            return None
+        if self._measures is None:  # the pattern is fixed: built once
+            free_index = np.full(self.n_dof, -1, dtype=np.int64)
+            free_index[self.free] = np.arange(self.free.size)
+            rows, cols, count = [], [], 0
+            for _, dofs, _ in parts:
+                m, k = dofs.shape
+                rows.append(np.repeat(np.arange(count, count + m), k))
+                cols.append(free_index[dofs.ravel()])
+                count += m
+            rows, cols = np.concatenate(rows), np.concatenate(cols)
+            keep = cols >= 0
+            active = np.unique(rows[keep])
+            renumber = np.full(count, -1, dtype=np.int64)
+            renumber[active] = np.arange(active.size)
+            pattern = _Pattern(renumber[rows[keep]], cols[keep], (active.size, self.free.size))
+            self._measures = (active, keep, pattern)
+        active, keep, pattern = self._measures
+        values = np.concatenate([m[0] for m in parts])[active]
+        grads = np.concatenate([m[2].ravel() for m in parts])[keep]
+        return values, pattern.matrix(grads)
 
     def reactions(self, q: np.ndarray, lam: float = 1.0) -> np.ndarray:
         """Forces the supports exert on the structure, all DOFs (zero where free)."""

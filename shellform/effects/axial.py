@@ -79,6 +79,12 @@ class _AxialMembers(Effect):
         N, _ = self._force(length)
         return {"axial_force": N, "strain": (length - self.L) / self.L, "length": length}
 
+    def held_measures(self, q):
+        """Member lengths and their gradients over the six end-node DOFs."""
+        d, length = self._geometry(q)
+        n = d / length[:, None]
+        return length, self.dofs, np.concatenate([-n, n], axis=1)
+
 
 class AxialBar(_AxialMembers):
     """Linear-elastic bars carrying tension and compression.
@@ -107,3 +113,7 @@ class Rope(_AxialMembers):
         out = super().member_results(q)
         out["slack"] = (out["length"] <= self.L).astype(np.int8)
         return out
+
+    def held_measures(self, q):
+        # a rope may go slack within a step: its length is not held
+        return None

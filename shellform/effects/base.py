@@ -57,6 +57,27 @@ class Effect:
         """Per-member quantities for output (axial force, strain, ...); none by default."""
         return {}
 
+    def held_measures(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Measures (member lengths) that a Newton step holds to their linearised change.
+
+        A stiff member stores a large energy in a small change of such a
+        measure, so a straight Newton step, which changes it to second order,
+        is cut short by the line search. The stretch projection of
+        :func:`~shellform.solvers.newton.solve_static` moves the trial state
+        back onto the linearised values.
+
+        Returns
+        -------
+        values : ndarray (m,)
+        dofs : ndarray (m, k)
+            Global DOFs each measure depends on.
+        gradients : ndarray (m, k)
+            Derivatives of each measure with respect to its DOFs.
+
+        None (the default): the effect has no such measure.
+        """
+        return None
+
 
 def element_pattern(dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """COO pattern of dense element blocks.

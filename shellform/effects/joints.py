@@ -56,6 +56,13 @@ class PenaltyJoints(Effect):
     def hessian_values(self, q):
         return self._values
 
+    def held_measures(self, q):
+        """The three components of every gap: linear in ``q``, so a projected step keeps them on the straight step."""
+        k = len(self.pairs)
+        dofs = np.stack([self.dofs[:, :3], self.dofs[:, 3:]], axis=2).reshape(3 * k, 2)
+        grads = np.tile([1.0, -1.0], (3 * k, 1))
+        return self._gap(q).ravel(), dofs, grads
+
     def member_results(self, q):
         gap = np.linalg.norm(self._gap(q), axis=1)
         return {"gap": gap, "force": self.k * gap}

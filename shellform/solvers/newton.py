@@ -1,4 +1,20 @@
-"""Static equilibrium by Newton's method with a backtracking line search."""
+"""Static equilibrium by Newton's method with a backtracking line search.
+
+Stiff members
+-------------
+A straight Newton step that rotates an axially stiff member (an edge of a
+nearly inextensible rod) also lengthens it, to second order, and the stiff
+member turns that into a large spurious energy: the line search cuts the
+step to a small fraction, the spurious axial forces stiffen the next tangent
+like a taut string, and Newton crawls. When the full step is rejected, the
+line search therefore follows the curve of trial states projected back onto
+the linearised member lengths (:class:`StretchProjection`): the step rotates
+members instead of stretching them, and the iteration count no longer grows
+with the axial stiffness. Measured (``python benchmarks/bench_rods.py --part
+newton``) on a 40-edge cantilever under self-weight in 3 load steps: at
+``EA L^2 / EI = 10^7`` 35 Newton iterations instead of 652 (and 24 halved
+load steps), at ``10^9`` 35 instead of 7818.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .linear import SingularMatrixError, factorize
+from .linear import LDLFactor, SingularMatrixError, factorize
 
 
 @dataclass
@@ -77,6 +93,7 @@ def solve_static(
     merit: str = "energy",
     linear_solver: str = "direct",
     max_backtracks: int = 30,
+    project: bool = True,
     callback=None,
 ) -> StaticResult:
     """Find ``q`` with ``r(q, lam)[free] = 0`` by Newton's method.
@@ -107,6 +124,10 @@ def solve_static(
         stabilised by load.
     linear_solver : {"direct", "amg", "auto"}
         See :mod:`shellform.solvers.linear`.
+    project : bool
+        When the full Newton step is rejected, search along the curve of
+        trial states moved back onto the linearised lengths of the axially
+        stiff members (:class:`StretchProjection`) instead of the straight line.
     callback : callable, optional
         Called as ``callback(iteration, residual_norm)`` after every accepted
         step (progress display).
@@ -160,13 +181,21 @@ def solve_static(
         kind = "converged" if norm <= tolerance(r) else "converged to the round-off floor"
         return f"{kind}: |r| = {norm:.3e} <= {tol:.3e}"
 
+    projection_cache = {}  # the projections of all steps share one symbolic factorisation
+    polish = None  # one more step at the round-off floor: None unused, True under way, False spent
     for it in range(1, max_iter + 1):
-        if norm <= tol:
+        if norm <= tolerance(r):
             return result(True, converged_message(), it - 1)
         K = system.tangent_free(q)
         tol = tolerance(r, K)
         if norm <= tol:
-            return result(True, converged_message(), it - 1)
+            # the floor is an estimate: right after a quadratic drop the residual
+            # is usually still above the true rounding level, and one more step
+            # (whose failure is no error) gets the reactions to full accuracy
+            if polish is None and len(norms) >= 2 and norms[-1] < 1e-3 * norms[-2]:
+                polish = True
+            else:
+                return result(True, converged_message(), it - 1)
         rf = r[free]
         phi0 = system.energy(q, lam) if merit == "energy" else 0.5 * norm**2
         accepted = False
@@ -181,16 +210,22 @@ def solve_static(
             slope = float(rf @ p) if merit == "energy" else -2.0 * phi0
             if slope >= 0.0:
                 continue  # not a descent direction of the energy: shift further
-            q_try, r_try, norm_try = _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks)
+            projection = (lambda q=q, p=p: StretchProjection(system, q, p, cache=projection_cache)) if project else None
+            q_try, r_try, norm_try = _line_search(
+                system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks, projection
+            )
             if q_try is not None:
                 accepted = True
                 n_reg += int(shift > 0.0)
                 break
+        if polish and (not accepted or not norm_try < norm):
+            return result(True, converged_message(), it - 1)  # at the rounding level already
         if not accepted:
             why = "the tangent is singular even with a large diagonal shift" if singular else (
                 f"no step decreased the {merit} merit, even with a large diagonal shift")
             return result(False, f"iteration {it}: {why}; the structure may be a mechanism at this state", it - 1)
         q, r, norm = q_try, r_try, norm_try
+        polish = False if polish else polish
         norms.append(norm)
         if callback is not None:
             callback(it, norm)
@@ -200,14 +235,28 @@ def solve_static(
     return result(False, f"not converged in {max_iter} iterations: |r| = {norm:.3e} > tolerance {tol:.3e}", max_iter)
 
 
-def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks):
-    """Backtracking (Armijo) along ``p``; returns (q, r, |r|) or (None, None, None)."""
+def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks, projection=None):
+    """Backtracking (Armijo) along ``p``; returns (q, r, |r|) or (None, None, None).
+
+    ``projection`` (a factory of a :class:`StretchProjection`): after the
+    straight full step has been rejected, the trial states are projected.
+    The projection changes a trial state at second order in ``alpha``, so
+    the slope of the Armijo test is unchanged.
+    """
     free = system.free
-    alpha = 1.0
     eps = np.finfo(float).eps
-    for _ in range(max_backtracks):
+    project = None
+    if projection is None:
+        trials = [(0.5**k, False) for k in range(max_backtracks)]
+    else:
+        trials = [(1.0, False)] + [(0.5**k, True) for k in range(max_backtracks - 1)]
+    for alpha, projected in trials:
         q_try = q.copy()
         q_try[free] += alpha * p
+        if projected:
+            if project is None:
+                project = projection()
+            q_try = project(q_try, alpha)
         r_try, norm_try = evaluate(q_try)
         if np.isfinite(norm_try):
             phi = system.energy(q_try, lam) if merit == "energy" else 0.5 * norm_try**2
@@ -218,5 +267,83 @@ def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_back
             flat = merit == "energy" and abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope))
             if flat and norm_try < (1.0 - 1e-4 * alpha) * norm:
                 return q_try, r_try, norm_try
-        alpha *= 0.5
     return None, None, None
+
+
+class StretchProjection:
+    """Trial states of a Newton step moved back onto the linearised values of the held measures.
+
+    A Newton step ``p`` from ``q`` changes each held measure ``m`` (the length
+    of an axially stiff member, :meth:`~shellform.effects.base.Effect.held_measures`)
+    by ``J p`` to first order; a straight step ``q + alpha p`` that rotates a
+    member lengthens it by a further ``alpha^2 |p_perp|^2 / (2 l)``, which a
+    stiff member turns into a large spurious energy. The projection finds the
+    smallest correction ``d`` (Gauss-Newton on ``m(q + alpha p + d) = m(q) +
+    alpha J p``, minimum norm: ``d = -J^T (J J^T)^{-1} g``) and so follows the
+    rotation instead of its tangent line. Without held measures it is the
+    identity.
+
+    Parameters
+    ----------
+    system : System
+    q : ndarray
+        State at the start of the step (all DOFs).
+    p : ndarray
+        Newton step on the free DOFs.
+    rtol : float
+        Measures are projected to ``rtol`` times the largest of them.
+    max_iter : int
+        Gauss-Newton iterations per projection.
+    cache : dict, optional
+        Shared by the projections of one solve: the ``J J^T`` of every
+        projection has the same pattern, so its ordering and symbolic
+        factorisation are reused.
+    """
+
+    def __init__(self, system, q: np.ndarray, p: np.ndarray, rtol: float = 1e-13, max_iter: int = 6,
+                 cache: dict | None = None):
+        self.system = system
+        self.max_iter = max_iter
+        self._cache = {} if cache is None else cache
+        held = system.held_measures(q) if hasattr(system, "held_measures") else None
+        if held is None or held[0].size == 0:
+            self.m0 = None
+            return
+        m0, J = held
+        self.m0 = m0
+        self.dm = J @ p
+        self.tol = rtol * float(np.max(np.abs(m0)))
+
+    def __call__(self, q_trial: np.ndarray, alpha: float) -> np.ndarray:
+        """The projected trial state.
+
+        Stops when the measures meet their targets, or stagnate (redundant
+        measures, e.g. a triangulated bar lattice, can only be met in the
+        least-squares sense); ``q_trial`` itself when the projection fails.
+        """
+        if self.m0 is None:
+            return q_trial
+        free = self.system.free
+        target = self.m0 + alpha * self.dm
+        q = q_trial.copy()
+        best, best_gap = q_trial, np.inf
+        for _ in range(self.max_iter + 1):
+            m, J = self.system.held_measures(q)
+            gap = float(np.max(np.abs(m - target)))
+            if not np.isfinite(gap) or gap > 0.5 * best_gap:
+                break
+            best, best_gap = q.copy(), gap
+            if gap <= self.tol:
+                break
+            A = sp.csr_matrix(J @ J.T)
+            # redundant measures make J J^T singular: a tiny shift gives the
+            # least-squares correction
+            A = A + sp.diags(np.full(A.shape[0], 1e-12 * float(A.diagonal().max())))
+            try:
+                F = LDLFactor(A, previous=self._cache.get("factor"))
+                self._cache["factor"] = F
+                q[free] -= J.T @ F.solve(m - target)
+            except SingularMatrixError:
+                self._cache.pop("factor", None)
+                break
+        return best
