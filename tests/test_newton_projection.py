@@ -118,3 +118,24 @@ def test_axially_stiff_cantilever_in_three_load_steps(axial_ratio):
     tip = res.q[3 * (s.n_nodes - 1): 3 * s.n_nodes]
     assert tip[0] == pytest.approx(0.2871, rel=0.01)
     assert tip[2] == pytest.approx(-0.8934, rel=0.01)
+
+
+def test_compressed_grid_keeps_the_straight_search_where_it_is_better():
+    """Rods pushed into a dome with joints 1e8 times stiffer than the edges: projecting every
+    trial (lengths held to the linearisation of compressed, buckling rods) halved the load
+    steps twice as often; keeping the better trial gives the straight search's steps."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "validation" / "rods"))
+    from penalty_study import arched_grid
+
+    runs = []
+    for project in (False, True):
+        s, net, system, idx, pairs = arched_grid(False, 1e8)
+        runs.append(solve_incremental(system, mu=1.0, n_steps=10, project=project))
+    straight, projected = runs
+    assert straight.success and projected.success
+    assert projected.n_steps <= straight.n_steps, (projected.iterations, straight.iterations)
+    n = 3 * s.n_nodes
+    assert np.abs(projected.q[:n] - straight.q[:n]).max() < 1e-7
