@@ -610,7 +610,7 @@ SCENE = Table(
                                  "together (forces) [N]. For mode its sign picks the direction (the mode is "
                                  "normalised with its largest component positive); otherwise it is > 0.",
                                  unit="m or N"),
-                "seed": Key("int", "Seed of the random numbers.", default=0, only=("random", "forces")),
+                "seed": Key("int", "Seed of the random numbers.", default=0, minimum=0, only=("random", "forces")),
                 "load_factor": Key("float", "mode: the tangent at the equilibrium under this load factor (default: "
                                    "the tangent at the start state).", default=None, only=("mode",)),
             },
