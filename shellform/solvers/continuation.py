@@ -18,8 +18,8 @@ constraint
 
     |du|^2 + c^2 dp^2 = ds^2          (spherical; ``c = 0``: cylindrical),
 
-where ``c = psi * |dG/dp| / k`` (``k`` the mean diagonal of the starting
-tangent) is the displacement per unit parameter of a typical stiffness, so
+where ``c = psi * |dG/dp| / k`` (``k`` the larger of the mean diagonals of the
+tangent at the starting and at the reference state) is the displacement per unit parameter of a typical stiffness, so
 both parts of the metric have the same weight for ``psi = 1``. The constraint is solved for the parameter correction
 as a quadratic (Crisfield), picking the root closest to the current increment;
 where the tangent cannot be factorised (exactly at a limit point) the bordered
@@ -1240,7 +1240,8 @@ def trace_path(
         Arc-length constraint; cylindrical measures only the free DOFs.
     psi : float
         Weight of the parameter in the spherical constraint (``c = psi |dG/dp| / k``
-        with ``k`` the mean diagonal of the starting tangent).
+        with ``k`` the larger of the mean tangent diagonals at the start and at the
+        reference state).
     parameter_scale : float
         Override for ``c`` in ``|du|^2 + c^2 dp^2 = ds^2``.
     max_steps : int
