@@ -6,16 +6,20 @@ rope tensions and strains, about 4e-5, do not change with n). Each size is
 relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 1e-6 sqrt(g L)) with
 
-* the fast scheme (implicit pseudo-transient steps) from the flat planform;
-* the same from a B-spline start fitted to a 4x coarser net (the coarse solve
-  is included in the time);
+* the fast scheme (implicit pseudo-transient steps, default options: start
+  from the force-density shape, LDL^T up to 100,000 unknowns and SuperLU in
+  nested-dissection order above);
+* the same scheme as it was before the force-density start (``--before``:
+  flat start, LDL^T at every size) for the before/after ratio;
 * the paper's explicit RK4 scheme and kinetic damping on the smaller sizes,
   for the ratio.
 
-Prints a table and writes ``benchmarks/results/bench_mra.json`` and ``.md``.
+Every run is a separate process, so its peak memory (``ru_maxrss``) is its
+own; runs go one after another. Prints a table and writes
+``benchmarks/results/bench_mra.json`` and ``.md``.
 
-Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--explicit-sizes 16 32]
-      [--explicit-wall 900] [--million]
+Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--before-sizes 32 100]
+      [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # many small BLAS calls: thr
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import multiprocessing as mp  # noqa: E402
 import platform  # noqa: E402
 import resource  # noqa: E402
 import time  # noqa: E402
@@ -33,109 +38,130 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from shellform.geometry import rectangle_grid  # noqa: E402
-from shellform.mra import fit_height_field, form_find, hanging_net, surface_start  # noqa: E402
-
 SIDE = 30.0
 EA = 1.0e7
 SLACK = 0.05
 
+# the variants of a run: relax options
+VARIANTS = {
+    "fast": {"scheme": "implicit"},
+    "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
+    "kinetic": {"scheme": "kinetic"},
+    "rk4": {"scheme": "rk4"},
+}
+
 
 def make_net(n_nodes_side: int):
-    t0 = time.perf_counter()
+    from shellform.geometry import rectangle_grid
+    from shellform.mra import hanging_net
+
     grid = rectangle_grid(SIDE, SIDE, n_nodes_side - 1, n_nodes_side - 1)
-    net = hanging_net(grid, {"groups": ["boundary"]}, slack=SLACK, EA=EA, mass_per_length=1.0)
-    return net, time.perf_counter() - t0
+    return hanging_net(grid, {"groups": ["boundary"]}, slack=SLACK, EA=EA, mass_per_length=1.0)
 
 
-def run(net, scheme, q0=None, **kw):
-    res = form_find(net, q0, scheme=scheme, **kw)
-    r = res.relaxation
-    return {
-        "scheme": scheme, "converged": bool(r.success), "iterations": int(r.iterations),
-        "factorizations": int(r.factorizations), "cg_iterations": int(r.linear_iterations),
-        "residual_evaluations": int(r.residual_evaluations), "wall_time_s": float(r.wall_time_s),
-        "max_velocity": float(r.max_velocity), "max_acceleration": float(r.max_acceleration),
-        "acceleration_tol": float(r.acceleration_tol), "n_slack": int(res.slack.sum()),
-        "rise": float(res.rise), "message": r.message, "positions": res.positions,
-    }
+def _run(n: int, variant: str, wall: float | None, out_q):
+    """One relaxation in this (child) process; puts a row and the positions on ``out_q``."""
+    from shellform.mra import form_find
 
-
-def coarse_start(n_side: int, factor: int = 4):
-    """B-spline start from a net with (n_side - 1) / factor cells per side; returns (q0, seconds, iterations)."""
     t0 = time.perf_counter()
-    nc = (n_side - 1) // factor
-    cnet = hanging_net(rectangle_grid(SIDE, SIDE, nc, nc), {"groups": ["boundary"]}, slack=SLACK, EA=EA,
-                       mass_per_length=1.0)
-    c = form_find(cnet)
-    hf = fit_height_field(c.positions, (0, SIDE), (0, SIDE), n_ctrl=max(4, min(12, nc // 2)))
-    return hf, time.perf_counter() - t0, int(c.relaxation.iterations)
+    net = make_net(n)
+    build = time.perf_counter() - t0
+    c0 = time.process_time()
+    res = form_find(net, max_wall_time=wall, **VARIANTS[variant])
+    r = res.relaxation
+    row = {
+        "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
+        "iterations": int(r.iterations), "factorizations": int(r.factorizations),
+        "cg_iterations": int(r.linear_iterations), "residual_evaluations": int(r.residual_evaluations),
+        "rejected_steps": int(r.rejected_steps), "wall_time_s": float(r.wall_time_s),
+        "cpu_time_s": time.process_time() - c0, "build_s": build,
+        "peak_memory_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "max_velocity": float(r.max_velocity), "max_acceleration": float(r.max_acceleration),
+        "acceleration_tol": float(r.acceleration_tol), "residual_norm": float(r.residual_norm),
+        "n_slack": int(res.slack.sum()), "rise": float(res.rise), "message": r.message,
+    }
+    out_q.put((row, res.positions))
+
+
+def run(n: int, variant: str, wall: float | None = None):
+    ctx = mp.get_context("fork")  # the parent has not imported shellform: each child starts clean
+    q = ctx.Queue()
+    p = ctx.Process(target=_run, args=(n, variant, wall, q))
+    p.start()
+    row, pos = q.get()
+    p.join()
+    return row, pos
+
+
+def growth(rows, key):
+    x = np.log([r["nodes"] for r in rows])
+    return float(np.polyfit(x, np.log([r[key] for r in rows]), 1)[0])
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="*", default=[32, 100, 316])
+    ap.add_argument("--before-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
-    ap.add_argument("--explicit-wall", type=float, default=900.0)
+    ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
+    ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = ap.parse_args()
-    sizes = list(args.sizes) + ([1000] if args.million else [])
+    sizes = sorted(set(args.sizes) | ({1000} if args.million else set()))
     rows = []
 
     def report(row):
-        rows.append({k: v for k, v in row.items() if k != "positions"})
-        print(f"{row['nodes']:>8d} {row['scheme']:>9s} {row['start']:>7s} conv={row['converged']!s:5s} "
+        rows.append(row)
+        print(f"{row['nodes']:>8d} {row['variant']:>8s} {row['start']:>13s} conv={row['converged']!s:5s} "
               f"it={row['iterations']:>7d} fact={row['factorizations']:>4d} cg={row['cg_iterations']:>6d} "
-              f"t={row['wall_time_s']:9.2f} s  a={row['max_acceleration']:.1e}  slack={row['n_slack']}", flush=True)
+              f"t={row['wall_time_s']:9.2f} s cpu={row['cpu_time_s']:9.2f} s mem={row['peak_memory_MB']:7.0f} MB "
+              f"a={row['max_acceleration']:.1e}  slack={row['n_slack']}", flush=True)
 
-    for n in sorted(set(args.explicit_sizes)):
-        net, _ = make_net(n)
-        ref = run(net, "implicit")
-        ref.update(nodes=n * n, start="flat")
-        report(ref)
-        for scheme in ("kinetic", "rk4"):
-            row = run(net, scheme, max_wall_time=args.explicit_wall)
-            row.update(nodes=n * n, start="flat",
-                       shape_difference=float(np.abs(row["positions"] - ref["positions"]).max()),
-                       time_ratio=row["wall_time_s"] / ref["wall_time_s"])
-            report(row)
+    fast = {}
     for n in sizes:
-        net, build = make_net(n)
-        row = run(net, "implicit")
-        row.update(nodes=n * n, start="flat", build_s=build,
-                   peak_memory_MB=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+        row, pos = run(n, "fast")
+        fast[n] = (row, pos)
         report(row)
-        if n >= 64:
-            hf, prep, cit = coarse_start(n)
-            q0 = surface_start(net, hf)
-            row2 = run(net, "implicit", q0)
-            row2.update(nodes=n * n, start="coarse", preparation_s=prep, coarse_iterations=cit,
-                        shape_difference=float(np.abs(row2["positions"] - row["positions"]).max()))
-            row2["wall_time_s"] += prep
-            report(row2)
-    flat = [r for r in rows if r["scheme"] == "implicit" and r["start"] == "flat" and r["nodes"] in
-            [s * s for s in sizes]]
-    growth = None
-    if len(flat) >= 2:
-        x = np.log([r["nodes"] for r in flat])
-        growth = {
-            "wall_time_exponent": float(np.polyfit(x, np.log([r["wall_time_s"] for r in flat]), 1)[0]),
-            "iterations_exponent": float(np.polyfit(x, np.log([r["iterations"] for r in flat]), 1)[0]),
-        }
-        print(f"growth with the number of nodes: wall time ~ N^{growth['wall_time_exponent']:.2f}, "
-              f"iterations ~ N^{growth['iterations_exponent']:.2f}")
-    out = Path(__file__).resolve().parent / "results"
-    out.mkdir(exist_ok=True)
+        if n in args.before_sizes:
+            row_b, pos_b = run(n, "before")
+            row_b["shape_difference"] = float(np.abs(pos_b - pos).max())
+            row_b["time_ratio_to_fast"] = row_b["wall_time_s"] / row["wall_time_s"]
+            report(row_b)
+    for n in sorted(set(args.explicit_sizes)):
+        if n not in fast:
+            fast[n] = run(n, "fast")
+            report(fast[n][0])
+        ref_row, ref_pos = fast[n]
+        for variant in ("kinetic", "rk4"):
+            row, pos = run(n, variant, args.explicit_wall)
+            row["shape_difference"] = float(np.abs(pos - ref_pos).max())
+            row["time_ratio_to_fast"] = row["wall_time_s"] / ref_row["wall_time_s"]
+            report(row)
+    fit = [fast[n][0] for n in sizes if fast[n][0]["converged"]]
+    exps = None
+    if len(fit) >= 2:
+        exps = {k + "_exponent": growth(fit, k) for k in ("wall_time_s", "cpu_time_s", "iterations",
+                                                           "factorizations", "peak_memory_MB")}
+        if len(fit) >= 3:
+            exps["wall_time_s_exponent_last_two"] = growth(fit[-2:], "wall_time_s")
+        print("growth with the number of nodes: " + ", ".join(f"{k} {v:.2f}" for k, v in exps.items()))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     meta = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
-            "load_average": os.getloadavg(), "side_m": SIDE, "EA_N": EA, "slack": SLACK}
-    (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": growth}, indent=2,
+            "load_average_at_end": os.getloadavg(), "side_m": SIDE, "EA_N": EA, "slack": SLACK,
+            "command": "python benchmarks/bench_mra.py " + " ".join(os.sys.argv[1:])}
+    (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": exps}, indent=2,
                                                    default=float) + "\n")
-    lines = ["| nodes | scheme | start | converged | iterations | factorizations | CG its | wall [s] | max a [m/s^2] |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | wall [s] | CPU [s] "
+             "| peak memory [MB] | max a [m/s^2] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['nodes']} | {r['scheme']} | {r['start']} | {r['converged']} | {r['iterations']} | "
-                     f"{r['factorizations']} | {r['cg_iterations']} | {r['wall_time_s']:.2f} | "
-                     f"{r['max_acceleration']:.1e} |")
+        lines.append(f"| {r['nodes']} | {r['variant']} ({r['scheme']}) | {r['start']} | {r['converged']} | "
+                     f"{r['iterations']} | {r['factorizations']} | {r['cg_iterations']} | {r['wall_time_s']:.2f} | "
+                     f"{r['cpu_time_s']:.2f} | {r['peak_memory_MB']:.0f} | {r['max_acceleration']:.1e} |")
+    if exps:
+        lines += ["", "Growth exponents (fast scheme, fitted over the converged sizes): "
+                  + ", ".join(f"{k} {v:.2f}" for k, v in exps.items())]
+    lines += ["", f"Load average at the end: {', '.join(f'{v:.2f}' for v in os.getloadavg())} (2 cores, shared)."]
     (out / "bench_mra.md").write_text("\n".join(lines) + "\n")
 
 

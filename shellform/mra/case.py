@@ -265,10 +265,13 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
     say(res.relaxation.message)
     summary = {"name": p["name"], **res.summary()}
     summary["relaxation_wall_time_s"] = summary.pop("wall_time_s")
-    summary["start"] = {**start_note, "iterations": int(res.relaxation.iterations),
+    summary["start"] = {**start_note, "relaxation_start": res.relaxation.start,
+                        "iterations": int(res.relaxation.iterations),
                         "wall_time_s": float(res.relaxation.wall_time_s)}
     if p["start"]["compare_flat"] and start_note["type"] != "flat":
-        flat = form_find(net, None, **options)
+        # the planform itself, as in the paper (without q0 the implicit scheme would start
+        # from the force-density shape)
+        flat = form_find(net, None, **{**options, "start": "reference"})
         prep = start_note.get("preparation_s", 0.0)
         summary["start"]["flat"] = {
             "converged": bool(flat.converged), "iterations": int(flat.relaxation.iterations),

@@ -75,6 +75,7 @@ class FormFindingResult:
             "converged": bool(r.success),
             "message": r.message,
             "scheme": r.scheme,
+            "start": r.start,
             "iterations": int(r.iterations),
             "max_velocity": float(r.max_velocity),
             "max_acceleration": float(r.max_acceleration),
@@ -134,7 +135,9 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     ----------
     net : HangingNet
     q0 : ndarray, optional
-        Start state (default: the planform, i.e. a flat start).
+        Start state. Default: the force-density shape for the implicit
+        scheme, the planform (a flat start, as in the MRA paper) for the
+        explicit ones; ``start="reference"`` forces the planform.
     scheme : {"implicit", "rk4", "kinetic"}
         Relaxation scheme (see :mod:`shellform.solvers.relaxation`).
     **relax_options

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from ..errors import ModelError
 from .linear import SingularMatrixError, factorize
@@ -370,6 +371,7 @@ def force_density_start(system, lam: float = 1.0, stiffness_scale: float = 1.0, 
     free[system.free] = True
     free = free.reshape(n, 3)
     Xb, Xf = X.copy(), np.zeros_like(X)
+    ncomp, labels = connected_components(G, directed=False)
     patterns = {}
     for c in range(3):
         patterns.setdefault(free[:, c].tobytes(), []).append(c)
@@ -380,7 +382,6 @@ def force_density_start(system, lam: float = 1.0, stiffness_scale: float = 1.0, 
             continue
         A = lap[fi][:, fi]
         # a free node with no path to a constrained one makes A singular: no shape to start from
-        ncomp, labels = sp.csgraph.connected_components(G, directed=False)
         held = np.zeros(ncomp, dtype=bool)
         held[labels[ci]] = True
         if ci.size == 0 or not np.all(held[labels[fi]]):
@@ -407,11 +408,25 @@ def force_density_start(system, lam: float = 1.0, stiffness_scale: float = 1.0, 
     # mismatch > 0 for a small force density (deep shape), < 0 for a large one (flat shape, members
     # in compression or at their harmonic length); bracket the root on a log scale
     lo, hi = np.log(1e-12 * float(np.abs(f).max())), np.log(1e12 * float(np.abs(f).max()))
-    if not (mismatch(lo) > 0 > mismatch(hi)):
+    f_lo, f_hi = mismatch(lo), mismatch(hi)
+    if not (f_lo > 0 > f_hi):
         return None
-    from scipy.optimize import brentq
-
-    cd = np.exp(brentq(mismatch, lo, hi, xtol=1e-6))
+    # Illinois regula falsi on the monotone mismatch (a few dozen length evaluations)
+    side = 0
+    for _ in range(100):
+        mid = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+        f_mid = mismatch(mid)
+        if f_mid > 0:
+            lo, f_lo = mid, f_mid
+            f_hi = 0.5 * f_hi if side == 1 else f_hi
+            side = 1
+        else:
+            hi, f_hi = mid, f_mid
+            f_lo = 0.5 * f_lo if side == -1 else f_lo
+            side = -1
+        if hi - lo < 1e-6:
+            break
+    cd = np.exp(0.5 * (lo + hi))
     out = q.copy()
     out[: 3 * n] = (Xb + Xf / cd).ravel()
     return out
