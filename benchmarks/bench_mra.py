@@ -59,7 +59,15 @@ def make_net(n_nodes_side: int):
     return hanging_net(grid, {"groups": ["boundary"]}, slack=SLACK, EA=EA, mass_per_length=1.0)
 
 
-def _run(n: int, variant: str, wall: float | None, out_q):
+def _progress(n, variant):
+    """A callback printing one line per implicit step (or per 2000 explicit steps) to stderr."""
+    def cb(info):
+        print(f"    [{n * n} {variant}] it {info.iteration} t {info.wall_time_s:.1f} s "
+              f"max a {info.max_acceleration:.2e} |r| {info.residual_norm:.2e}", file=os.sys.stderr, flush=True)
+    return cb
+
+
+def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
     """One relaxation in this (child) process; puts a row and the positions on ``out_q``."""
     from shellform.mra import form_find
 
@@ -67,7 +75,8 @@ def _run(n: int, variant: str, wall: float | None, out_q):
     net = make_net(n)
     build = time.perf_counter() - t0
     c0 = time.process_time()
-    res = form_find(net, max_wall_time=wall, **VARIANTS[variant])
+    cb = _progress(n, variant) if verbose else None
+    res = form_find(net, max_wall_time=wall, callback=cb, **VARIANTS[variant])
     r = res.relaxation
     row = {
         "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
@@ -83,10 +92,10 @@ def _run(n: int, variant: str, wall: float | None, out_q):
     out_q.put((row, res.positions))
 
 
-def run(n: int, variant: str, wall: float | None = None):
+def run(n: int, variant: str, wall: float | None = None, verbose: bool = False):
     ctx = mp.get_context("fork")  # the parent has not imported shellform: each child starts clean
     q = ctx.Queue()
-    p = ctx.Process(target=_run, args=(n, variant, wall, q))
+    p = ctx.Process(target=_run, args=(n, variant, wall, q, verbose))
     p.start()
     row, pos = q.get()
     p.join()
@@ -105,6 +114,8 @@ def main():
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
     ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
+    ap.add_argument("--wall", type=float, default=None, help="wall-time limit of each implicit run [s]")
+    ap.add_argument("--verbose", action="store_true", help="print every implicit step to stderr")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = ap.parse_args()
     sizes = sorted(set(args.sizes) | ({1000} if args.million else set()))
@@ -119,11 +130,11 @@ def main():
 
     fast = {}
     for n in sizes:
-        row, pos = run(n, "fast")
+        row, pos = run(n, "fast", args.wall, args.verbose)
         fast[n] = (row, pos)
         report(row)
         if n in args.before_sizes:
-            row_b, pos_b = run(n, "before")
+            row_b, pos_b = run(n, "before", args.wall, args.verbose)
             row_b["shape_difference"] = float(np.abs(pos_b - pos).max())
             row_b["time_ratio_to_fast"] = row_b["wall_time_s"] / row["wall_time_s"]
             report(row_b)

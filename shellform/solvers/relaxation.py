@@ -40,7 +40,7 @@ Three schemes reach that rest state; ``scheme`` selects one:
     along each step (its changes summed member by member, so they stay
     accurate near equilibrium); and conjugate gradients preconditioned by the
     factor of an earlier step, refactorising only when they stall (sparse
-    LDL^T, or SuperLU in nested-dissection order on large nets).
+    LDL^T; SuperLU in nested-dissection order on request).
 
 All three stop on the same test (nodal velocity and acceleration below the
 tolerances) and reach the same equilibrium: the minimum of the potential.
@@ -453,9 +453,12 @@ class _SPDSolve:
     coordinates (:func:`nested_dissection`); on the surface-like graph of a
     net its fill grows like ``N log N`` instead of AMD's faster growth.
     Measured on one tangent of a 317 x 317 net (297,675 DOFs): QDLDL 10.9 s,
-    SuperLU in nested-dissection order 4.6 s; at 101 x 101 (29,403 DOFs)
-    0.14 s and 0.17 s. ``"auto"`` takes ``"ldl"`` up to 100,000 unknowns and
-    ``"nd"`` above. ``"amg"`` uses smoothed-aggregation multigrid with the
+    SuperLU in nested-dissection order 5.2 s; at 101 x 101 (29,403 DOFs)
+    0.14 s and 0.2 s. Explicit zeros (slack ropes) are removed first: with
+    them SuperLU took 149 s instead of 0.52 s on one matrix. Inside a
+    relaxation SuperLU's time still varies widely from matrix to matrix
+    (0.5 s to about 50 s per factorisation at 297,675 DOFs, 0.03 s to 0.5 s
+    at 29,403), so ``"auto"`` is ``"ldl"``. ``"amg"`` uses smoothed-aggregation multigrid with the
     three nodal translations as near-null space as the preconditioner; it
     suits soft nets only: on a taut net of nearly inextensible ropes the
     tangent is so anisotropic (axial over transverse stiffness = 1 / strain)
@@ -466,7 +469,7 @@ class _SPDSolve:
     def __init__(self, method: str, n: int, reuse: bool = True, cg_max: int | None = None,
                  coords: np.ndarray | None = None, dofs: np.ndarray | None = None):
         if method == "auto":
-            method = "ldl" if n <= 100_000 else "nd"
+            method = "ldl"
         if method == "nd" and coords is None:
             raise ModelError("relaxation: the nested-dissection solver needs the node coordinates")
         self.coords = coords
@@ -514,7 +517,12 @@ class _SPDSolve:
             if self._perm is None:
                 self._perm = _dof_order(A, self.coords, self.dofs)
             p = self._perm
+            self._lu = None  # free the old factor first: two at once would double the peak memory
             Ap = sp.csc_matrix(A[p][:, p])
+            # slack ropes leave explicit zeros in the tangent's fixed pattern; SuperLU keeps
+            # them in its structure and ran 300 times slower with them (149 s against 0.52 s
+            # on the first matrix of a 316 x 316 net, the same nonzeros in the factor)
+            Ap.eliminate_zeros()
             try:
                 # SPD: no pivoting needed, so the nested-dissection order is kept as given
                 self._lu = spla.splu(Ap, permc_spec="NATURAL", diag_pivot_thresh=0.0,
