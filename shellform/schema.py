@@ -311,6 +311,8 @@ _POS = dict(minimum=0.0, exclusive_minimum=True)
 #: divisions of a grid per side: far beyond any net that fits in memory is a typing error
 _DIVISIONS = dict(minimum=1, maximum=10_000)
 _NONNEG = dict(minimum=0.0)
+#: planform sizes: beyond 1000 km is a typing error (and overflows the mesher's arithmetic)
+_SIZE = dict(minimum=0.0, exclusive_minimum=True, maximum=1.0e6)
 
 GEOMETRY = Table(
     discriminator="type",
@@ -324,9 +326,9 @@ GEOMETRY = Table(
                     "cells become members, and so do the edges of triangle and quad cells (each once).",
                     default=None, only=("file",), required_for=("file",)),
         "length_x": Key("float", "Side of the rectangle along x.", default=None, unit="m", only=("rectangle",),
-                        required_for=("rectangle",), **_POS),
+                        required_for=("rectangle",), **_SIZE),
         "length_y": Key("float", "Side of the rectangle along y.", default=None, unit="m", only=("rectangle",),
-                        required_for=("rectangle",), **_POS),
+                        required_for=("rectangle",), **_SIZE),
         "n_i": Key("int", "Quads along x (rectangle) or along the surface's u direction (bspline).", default=None,
                    only=("rectangle", "bspline"), required_for=("rectangle", "bspline"), **_DIVISIONS),
         "n_j": Key("int", "Quads along y (rectangle) or along v (bspline).", default=None,
@@ -334,14 +336,14 @@ GEOMETRY = Table(
         "origin": Key("vec3", "South-west corner of the rectangle.", default=[0.0, 0.0, 0.0], unit="m",
                       only=("rectangle",)),
         "a": Key("float", "Semi-axis of the ellipse along x.", default=None, unit="m", only=("ellipse",),
-                 required_for=("ellipse",), **_POS),
+                 required_for=("ellipse",), **_SIZE),
         "b": Key("float", "Semi-axis of the ellipse along y.", default=None, unit="m", only=("ellipse",),
-                 required_for=("ellipse",), **_POS),
+                 required_for=("ellipse",), **_SIZE),
         "center": Key("vec3", "Centre of the ellipse or disc.", default=[0.0, 0.0, 0.0], unit="m",
                       only=("ellipse", "disk")),
         "radius": Key("float", "Radius of the disc; of the hemisphere R (default 0.0382 m, the paper's "
                       "7.64 cm diameter).", default=None, unit="m", only=("disk", "hemisphere"),
-                      required_for=("disk",), **_POS),
+                      required_for=("disk",), **_SIZE),
         "n": Key("int", "Quads per side of the mapped grid (ellipse, disk); rods per direction, odd "
                  "(hemisphere).", default=None, only=("ellipse", "disk", "hemisphere"),
                  required_for=("ellipse", "disk", "hemisphere"), **_DIVISIONS),

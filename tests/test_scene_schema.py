@@ -208,3 +208,13 @@ groups = ["boundary"]
     s = load_scene(scene)
     assert s["name"] == "dome" and s["analysis"]["type"] == "static"
     assert np.array_equal(np.sort(s["mesh"].boundary_nodes()), np.arange(19, 37))
+
+
+@pytest.mark.parametrize("key, value", [("length_x", 1e300), ("length_y", 2e6)])
+def test_absurd_planform_sizes_are_named_before_meshing(key, value):
+    """A 1e300 m rectangle once reached the mesher and crashed the interpreter."""
+    scene = {"geometry": {"type": "rectangle", "length_x": 2.0, "length_y": 1.0, "n_i": 4, "n_j": 2},
+             "supports": [{"groups": ["corners"]}]}
+    scene["geometry"][key] = value
+    with pytest.raises(SceneError, match=f"geometry.{key}"):
+        parse_scene(scene)
