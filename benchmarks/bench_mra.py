@@ -116,6 +116,8 @@ def main():
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
     ap.add_argument("--wall", type=float, default=None, help="wall-time limit of each implicit run [s]")
     ap.add_argument("--verbose", action="store_true", help="print every implicit step to stderr")
+    ap.add_argument("--add-rows", nargs="*", default=[],
+                    help="a bench_mra.json of an earlier run whose rows join this one's (e.g. a long 10^5 run)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = ap.parse_args()
     sizes = sorted(set(args.sizes) | ({1000} if args.million else set()))
@@ -141,6 +143,7 @@ def main():
     for n in sorted(set(args.explicit_sizes)):
         if n not in fast:
             fast[n] = run(n, "fast")
+            fast[n][0]["explicit_reference_only"] = True  # not one of the sizes of the growth fit
             report(fast[n][0])
         ref_row, ref_pos = fast[n]
         for variant in ("kinetic", "rk4"):
@@ -148,7 +151,13 @@ def main():
             row["shape_difference"] = float(np.abs(pos - ref_pos).max())
             row["time_ratio_to_fast"] = row["wall_time_s"] / ref_row["wall_time_s"]
             report(row)
-    fit = [fast[n][0] for n in sizes if fast[n][0]["converged"]]
+    fit_nodes = {n * n for n in sizes}
+    for path in args.add_rows:
+        added = json.loads(Path(path).read_text())["rows"]
+        rows.extend(added)
+        fit_nodes |= {r["nodes"] for r in added if not r.get("explicit_reference_only")}
+    fit = sorted((r for r in rows if r["variant"] == "fast" and r["converged"] and r["nodes"] in fit_nodes),
+                 key=lambda r: r["nodes"])
     exps = None
     if len(fit) >= 2:
         exps = {k + "_exponent": growth(fit, k) for k in ("wall_time_s", "cpu_time_s", "iterations",
