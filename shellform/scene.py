@@ -94,6 +94,9 @@ _ANALYSIS_SCOPE = {
 }
 
 
+#: time steps of a dynamics scene: beyond this a unit is almost certainly off
+MAX_TIME_STEPS = 1.0e8
+
 def _source(data: dict) -> str:
     """'nodes', 'planform', 'hemisphere' or 'file' (after [geometry] was validated)."""
     if data.get("nodes") is not None:
@@ -256,6 +259,10 @@ def _check_bar_rope(scene: dict, base_dir) -> None:
         for key in ("time_step", "duration"):
             if d[key] is None:
                 raise SceneError(f"analysis.dynamics.{key}", "this key is required for analysis 'dynamics'")
+        if d["duration"] / d["time_step"] > MAX_TIME_STEPS:
+            raise SceneError("analysis.dynamics.time_step",
+                             f"duration / time_step = {d['duration'] / d['time_step']:.3g} steps; at most "
+                             f"{MAX_TIME_STEPS:.0e} are allowed (is a unit off?)")
     for where, mon in (("continuation", c["monitor_node"]), ("dynamics", d["monitor_node"])):
         if mon is not None and mon >= n:
             raise SceneError(f"analysis.{where}.monitor_node",

@@ -218,3 +218,16 @@ def test_absurd_planform_sizes_are_named_before_meshing(key, value):
     scene["geometry"][key] = value
     with pytest.raises(SceneError, match=f"geometry.{key}"):
         parse_scene(scene)
+
+
+def test_a_time_step_far_below_the_duration_is_named():
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    scene = tomllib.loads((root / "scenes" / "chain_dynamics.toml").read_text())
+    scene["analysis"]["dynamics"]["time_step"] = 1e-300
+    with pytest.raises(SceneError, match="analysis.dynamics.time_step"):
+        parse_scene(scene, base_dir=root / "scenes")
