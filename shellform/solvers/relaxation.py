@@ -24,7 +24,7 @@ Three schemes reach that rest state; ``scheme`` selects one:
     four, and no viscous drag slowing the fall.
 ``"implicit"``
     Pseudo-transient continuation: each step is a backward-Euler step of the
-    motion from rest, ``(K + M / dt^2) dq = -r``, with the global sparse
+    motion from rest, ``(K + (1/dt^2 + c/dt) M) dq = -r``, with the global sparse
     tangent ``System.tangent_free``. The total potential of a hanging net is
     convex (a taut rope's energy is a convex function of the node positions,
     a slack one is zero, the weight is linear), so a step is accepted when the
@@ -112,7 +112,9 @@ class RelaxationResult:
     max_velocity, max_acceleration : float
         Largest nodal speed [m/s] and nodal acceleration magnitude [m/s^2] at
         the final state; the acceleration is the out-of-balance force over the
-        physical mass, ``|r_i| / m_i``.
+        physical mass, ``|r_i| / m_i``, except for ``"rk4"``, which reports the
+        acceleration of its equation of motion, ``|r_i + c_i v_i| / m_i``
+        (the same at rest).
     residual_norm : float
         Euclidean norm of the out-of-balance force at the free DOFs [N].
     velocity_tol, acceleration_tol : float
