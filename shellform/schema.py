@@ -409,8 +409,14 @@ RELAXATION = Table(
         "max_wall_time": Key("float", "Give up after this many seconds (default: no limit).", default=None, unit="s", **_POS),
         "damping": Key("float", "Viscous damping per unit mass (default 2 sqrt(g / L)).", default=None, unit="1/s",
                        **_NONNEG),
-        "linear_solver": Key("str", "Linear solver of the implicit scheme.", default="auto",
-                             choices=("auto", "ldl", "amg", "direct")),
+        "linear_solver": Key("str", "Linear solver of the implicit scheme: 'auto' is 'cholesky' (supernodal "
+                             "CHOLMOD); 'ldl' (QDLDL), 'nd' (SuperLU in nested-dissection order), 'amg' (soft nets "
+                             "only) or 'direct'.", default="auto",
+                             choices=("auto", "cholesky", "ldl", "nd", "amg", "direct")),
+        "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is the force-density shape "
+                     "for the implicit scheme and the flat planform for the explicit ones (as in the paper); "
+                     "'reference' forces the planform, 'force_density' the force-density shape.", default="auto",
+                     choices=("auto", "reference", "force_density")),
         "dt": Key("float", "Explicit time step (default 90 % of the stability bound) or first pseudo time step.",
                   default=None, unit="s", **_POS),
         "checkpoint_interval": Key("float", "Save the relaxation state to DIR/relaxation_checkpoint.npz at most "

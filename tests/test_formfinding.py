@@ -6,7 +6,7 @@ import meshio
 import numpy as np
 import pytest
 
-from shellform import MechanismError, SceneError
+from shellform import MechanismError, ModelError, SceneError
 from shellform.geometry import dish, disk_grid, rectangle_grid
 from shellform.mra import (
     HypostaticWarning,
@@ -187,3 +187,19 @@ def test_case_on_a_bspline_surface_grid(tmp_path):
     assert s["hypostatic"]["n_A"] == 4
     # the ropes remember the curved surface: rest lengths differ from the flat spacing of 1 m
     assert s["rope_lengths"]["max"] > 1.05
+
+
+@pytest.mark.parametrize("start, expected", [("auto", "force_density"), ("reference", "reference")])
+def test_case_solver_start_and_linear_solver_keys(tmp_path, start, expected):
+    params = {
+        "geometry": {"type": "rectangle", "length_x": 9.0, "length_y": 4.0, "n_i": 9, "n_j": 4},
+        "supports": SIX_POINTS,
+        "ropes": {"slack": 0.05},
+        "solver": {"start": start, "linear_solver": "ldl"},
+        "output": {"meshes": False},
+    }
+    s = run_mra_case(params, tmp_path)
+    assert s["converged"] and s["n_slack_ropes"] == 0
+    assert s["start"]["relaxation_start"] == expected
+    with pytest.raises(ModelError, match="unknown start 'sideways'"):
+        run_mra_case({**params, "solver": {"start": "sideways"}}, tmp_path)

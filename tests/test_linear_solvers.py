@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellform.solvers.linear import LDLFactor, SingularMatrixError, factorize
+from shellform.solvers.linear import CholeskyFactor, LDLFactor, SingularMatrixError, factorize
 
 
 def laplacian_3d(n):
@@ -13,7 +13,7 @@ def laplacian_3d(n):
     return sp.kron(T, sp.eye(3)).tocsr()
 
 
-@pytest.mark.parametrize("method", ["direct", "ldl", "lu", "amg", "auto"])
+@pytest.mark.parametrize("method", ["direct", "ldl", "lu", "cholesky", "amg", "auto"])
 def test_solvers_agree_on_an_spd_system(method):
     A = laplacian_3d(50)
     x_true = np.random.default_rng(0).normal(size=A.shape[0])
@@ -40,7 +40,7 @@ def test_direct_falls_back_to_lu_on_a_zero_pivot():
     assert np.allclose(factorize(A, "direct").solve([2.0, 3.0]), [3.0, 2.0])
 
 
-@pytest.mark.parametrize("method", ["direct", "lu", "ldl"])
+@pytest.mark.parametrize("method", ["direct", "lu", "ldl", "cholesky"])
 def test_singular_matrix_raises(method):
     A = sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0]]))
     with pytest.raises(SingularMatrixError):
@@ -80,3 +80,28 @@ def test_ldl_factor_reused_on_the_same_pattern_gives_up_its_storage():
     assert np.allclose(2.0 * (A @ F2.solve(b)), b)
     with pytest.raises(RuntimeError, match="later factorisation"):
         F1.solve(b)
+
+
+def test_cholesky_refuses_an_indefinite_matrix():
+    A = laplacian_3d(40) - 1.5 * sp.eye(120)
+    with pytest.raises(SingularMatrixError, match="not positive definite"):
+        CholeskyFactor(A)
+
+
+def test_cholesky_reuses_its_analysis_on_the_same_pattern_and_redoes_it_on_another():
+    A = laplacian_3d(10)
+    rng = np.random.default_rng(5)
+    b = rng.normal(size=(A.shape[0], 2))  # two right-hand sides at once
+    F1 = CholeskyFactor(A)
+    assert np.allclose(A @ F1.solve(b), b)
+    # same pattern, other values: the analysis is taken over and F1 gives up its storage
+    F2 = CholeskyFactor(3.0 * A + sp.eye(A.shape[0]), previous=F1)
+    assert F2._symbolic is not None and F1._symbolic is None
+    assert np.allclose((3.0 * A + sp.eye(A.shape[0])) @ F2.solve(b), b)
+    with pytest.raises(SingularMatrixError, match="later factorisation"):
+        F1.solve(b)
+    # another pattern: a fresh analysis, the answer still right
+    B = sp.csr_matrix(A + sp.diags(0.1 * np.ones(A.shape[0] - 6), 6) + sp.diags(0.1 * np.ones(A.shape[0] - 6), -6))
+    F3 = CholeskyFactor(B, previous=F2)
+    assert F2._symbolic is not None
+    assert np.allclose(B @ F3.solve(b[:, 0]), b[:, 0])

@@ -87,10 +87,11 @@ def test_nested_dissection_is_a_permutation_that_cuts_fill():
     assert fill(order) < 0.5 * fill(np.arange(n * n))
 
 
-def test_nested_dissection_solver_reaches_the_same_shape():
+@pytest.mark.parametrize("method", ["nd", "cholesky"])
+def test_other_linear_solvers_reach_the_same_shape(method):
     system = small_net(n=9, boundary=True)
     a = relax(system, linear_solver="ldl", rtol=1e-9)
-    b = relax(system, linear_solver="nd", rtol=1e-9)
+    b = relax(system, linear_solver=method, rtol=1e-9)
     assert a.success and b.success
     assert b.factorizations > 0
     assert np.max(np.abs(a.q - b.q)) < 1e-8

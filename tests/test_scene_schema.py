@@ -105,6 +105,8 @@ BARS = {
     (NET, ("analysis", "type"), "static", "analysis.type", "allowed: 'mra', 'form_and_buckle'"),
     (NET, ("analysis", "dynamics"), {"time_step": 1.0}, "analysis.dynamics", "applies to 'dynamics'"),
     (NET, ("analysis", "relaxation", "scheme"), "euler", "analysis.relaxation.scheme", "'implicit', 'rk4'"),
+    (NET, ("analysis", "relaxation", "start"), "sideways", "analysis.relaxation.start", "'auto', 'reference'"),
+    (NET, ("analysis", "relaxation", "linear_solver"), "magic", "analysis.relaxation.linear_solver", "'cholesky'"),
     (NET, ("analysis", "start_shape", "depth"), None, "analysis.start_shape.depth", "needs a depth"),
     (NET, ("supports",), [{"positions": [[0, 0]], "dofs": "z"}, {"groups": ["corners"]}], "supports",
      "same components"),

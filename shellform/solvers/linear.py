@@ -10,6 +10,9 @@
   the same one :mod:`shellform.solvers.stability` and the continuation use)
   also gives the inertia (number of negative eigenvalues, Sylvester's law).
 * ``"ldl"``, ``"lu"``: one of the two, without fallback.
+* ``"cholesky"``: supernodal Cholesky (CHOLMOD) for symmetric positive
+  definite matrices, several times faster than LDL^T on large ones
+  (:class:`CholeskyFactor`); it fails instead of returning an inertia.
 * ``"amg"``: conjugate gradients preconditioned by pyamg's smoothed-aggregation
   multigrid. For large symmetric positive definite tangents only (taut rope nets
   and stable states); it reports failure instead of returning a wrong answer.
@@ -220,6 +223,82 @@ class LDLFactor:
         return self.min_pivot_ratio > pivot_tol and self.backward_error() < backward_tol
 
 
+class CholeskyFactor:
+    """Supernodal sparse Cholesky ``A = L L^T`` (CHOLMOD) for symmetric positive definite matrices.
+
+    CHOLMOD (SuiteSparse, through cvxopt's binding) orders by approximate
+    minimum degree like QDLDL but factorises dense supernodes with BLAS:
+    on the tangent of a taut 316 x 316 rope net (295,788 unknowns) one
+    numeric factorisation took 0.7 s against QDLDL's 10.4 s, and 0.044 s
+    against 0.13 s at 100 x 100 (``benchmarks/bench_factorization.py``).
+    It has no inertia: use :class:`LDLFactor` where the matrix may be
+    indefinite.
+
+    Parameters
+    ----------
+    A : sparse matrix
+        Symmetric positive definite (its upper triangle is used).
+    previous : CholeskyFactor, optional
+        A factor of a matrix with the same sparsity pattern: its ordering and
+        symbolic analysis are reused and its storage is taken over (it cannot
+        solve afterwards).
+
+    Raises
+    ------
+    SingularMatrixError
+        When ``A`` is not (numerically) positive definite.
+    """
+
+    method = "cholesky"
+
+    def __init__(self, A, previous: CholeskyFactor | None = None):
+        from cvxopt import cholmod, matrix, spmatrix
+
+        A = sp.csr_matrix(A)
+        self.shape = A.shape
+        self._source = None
+        if (previous is not None and previous._symbolic is not None and previous._source is not None
+                and A.has_canonical_format and np.array_equal(previous._source[0], A.indptr)
+                and np.array_equal(previous._source[1], A.indices)):
+            # same pattern as the previous matrix: take its upper triangle by index, reuse the analysis
+            self._source, self._M, self._symbolic = previous._source, previous._M, previous._symbolic
+            previous._symbolic = None
+            self._M.V = matrix(A.data[self._source[2]])
+        else:
+            U = _upper_csc(A)
+            cols = np.repeat(np.arange(U.shape[1], dtype=np.int64), np.diff(U.indptr))
+            self._M = spmatrix(matrix(U.data), matrix(U.indices.astype(np.int64)), matrix(cols), U.shape)
+            self._symbolic = cholmod.symbolic(self._M, uplo="U")
+            row = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+            keep = np.flatnonzero(A.indices <= row)
+            if A.has_canonical_format and keep.size == U.nnz:
+                # the lower triangle of the CSR arrays is U in CSC order (see _upper_csc)
+                self._source = (A.indptr.copy(), A.indices.copy(), keep)
+        try:
+            cholmod.numeric(self._M, self._symbolic)
+        except ArithmeticError as exc:
+            # CHOLMOD reports the column where a pivot was not positive
+            self._symbolic = None
+            raise SingularMatrixError(
+                f"Cholesky factorisation failed (pivot {exc} of the reordered matrix is not positive): "
+                "the matrix is not positive definite"
+            ) from None
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``A^{-1} b`` for one right-hand side or one per column."""
+        from cvxopt import cholmod, matrix
+
+        if self._symbolic is None:
+            raise SingularMatrixError("this Cholesky factor's storage was reused by a later factorisation")
+        b = np.asarray(b, dtype=float)
+        B = matrix(b.reshape(b.shape[0], -1))
+        cholmod.solve(self._symbolic, B)
+        x = np.array(B).reshape(b.shape)
+        if not np.all(np.isfinite(x)):
+            raise SingularMatrixError("Cholesky solve produced non-finite values (matrix numerically singular)")
+        return x
+
+
 class LUFactor:
     """Sparse LU factorisation with partial pivoting (SuperLU)."""
 
@@ -299,7 +378,7 @@ def factorize(A: sp.spmatrix, method: str = "direct", amg_threshold: int = 200_0
     ----------
     A : sparse matrix
         Square system matrix.
-    method : {"direct", "ldl", "lu", "amg", "auto"}
+    method : {"direct", "ldl", "lu", "cholesky", "amg", "auto"}
         See the module docstring.
     amg_threshold : int
         Size above which ``"auto"`` picks AMG.
@@ -312,6 +391,8 @@ def factorize(A: sp.spmatrix, method: str = "direct", amg_threshold: int = 200_0
         return LDLFactor(A)
     if method == "lu":
         return LUFactor(A)
+    if method == "cholesky":
+        return CholeskyFactor(A)
     if method == "amg":
         return AMGFactor(A)
-    raise ValueError(f"unknown linear solver {method!r}; expected 'direct', 'ldl', 'lu', 'amg' or 'auto'")
+    raise ValueError(f"unknown linear solver {method!r}; expected 'direct', 'ldl', 'lu', 'cholesky', 'amg' or 'auto'")
