@@ -7,9 +7,11 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 1e-6 sqrt(g L)) with
 
 * the fast scheme (implicit pseudo-transient steps, default options: start
-  from the force-density shape, CHOLMOD supernodal Cholesky);
-* the same scheme with QDLDL's LDL^T instead (``--ldl-sizes``), for the
-  ratio the factorisation makes;
+  from the force-density shape, slack-rope active set, CHOLMOD supernodal
+  Cholesky);
+* the same scheme without the slack-rope active set (``--plain-sizes``) and
+  with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
+  each makes;
 * the same scheme as it was before the force-density start (``--before-sizes``:
   flat start, LDL^T) for the before/after ratio;
 * the paper's explicit RK4 scheme and kinetic damping on the smaller sizes,
@@ -20,7 +22,7 @@ own; runs go one after another. Prints a table and writes
 ``benchmarks/results/bench_mra.json`` and ``.md``.
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--before-sizes 32 100] [--ldl-sizes 32 100]
-      [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
+      [--plain-sizes 32 100] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ SLACK = 0.05
 VARIANTS = {
     "fast": {"scheme": "implicit"},
     "ldl": {"scheme": "implicit", "linear_solver": "ldl"},
+    "plain": {"scheme": "implicit", "slack_active_set": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "kinetic": {"scheme": "kinetic"},
     "rk4": {"scheme": "rk4"},
@@ -114,6 +117,7 @@ def main():
     ap.add_argument("--sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--before-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--ldl-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
     ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
@@ -138,7 +142,7 @@ def main():
         row, pos = run(n, "fast", args.wall, args.verbose)
         fast[n] = (row, pos)
         report(row)
-        for variant, chosen in (("ldl", args.ldl_sizes), ("before", args.before_sizes)):
+        for variant, chosen in (("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)
                 row_b["shape_difference"] = float(np.abs(pos_b - pos).max())

@@ -164,6 +164,21 @@ class System:
         """Tangent restricted to the free DOFs (CSR), assembled directly."""
         return self._ff.matrix(self._hessian_vals(q, self._ff_mask))
 
+    def assemble_free(self, values: dict) -> sp.csr_matrix:
+        """A matrix on the pattern of :meth:`tangent_free` from some effects' Hessian-shaped values.
+
+        ``values`` maps an effect (one of ``self.effects``) to values in the
+        order of its ``hessian_pattern``; the other effects contribute zero.
+        The result has exactly the tangent's sparsity structure, so its
+        ``data`` can be added to a tangent's entry by entry.
+        """
+        vals = []
+        for e in self.effects:
+            given = values.get(e)
+            vals.append(np.zeros(len(e.hessian_pattern()[0])) if given is None else np.asarray(given, dtype=float))
+        vals.append(np.zeros(self.n_dof))
+        return self._ff.matrix(np.concatenate(vals)[self._ff_mask])
+
     def held_measures(self, q: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix] | None:
         """Values of the effects' held measures (:meth:`Effect.held_measures`) and their Jacobian on the free DOFs.
 

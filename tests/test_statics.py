@@ -42,6 +42,15 @@ def test_tangent_is_the_derivative_of_the_residual():
     assert relative_error(K, fd_jacobian(system.residual, q)) < 1e-7
     Kff = system.tangent_free(q).toarray()
     assert np.allclose(Kff, K[np.ix_(system.free, system.free)])
+    # a matrix from the effects' own values has the tangent's structure entry for entry
+    Kt = system.tangent_free(q)
+    Ka = system.assemble_free({e: e.hessian_values(q) for e in system.effects})
+    assert np.array_equal(Ka.indptr, Kt.indptr) and np.array_equal(Ka.indices, Kt.indices)
+    assert np.allclose(Ka.data, Kt.data)
+    rope = next(e for e in system.effects if e.name == "rope")
+    Kr = system.assemble_free({rope: rope.hessian_values(q)})
+    others = system.assemble_free({e: e.hessian_values(q) for e in system.effects if e is not rope})
+    assert Kr.nnz == Kt.nnz and np.allclose((Kr + others).toarray(), Kff)
 
 
 def test_von_mises_rising_branch_matches_analytic_equilibrium():

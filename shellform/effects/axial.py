@@ -23,6 +23,16 @@ import numpy as np
 from .base import Effect, element_pattern, scatter
 
 
+def _two_node_blocks(K: np.ndarray) -> np.ndarray:
+    """Member Hessians ``[[K, -K], [-K, K]]`` from the 3 x 3 blocks ``K`` (m, 3, 3), flattened."""
+    block = np.empty((len(K), 6, 6))
+    block[:, :3, :3] = K
+    block[:, 3:, 3:] = K
+    block[:, :3, 3:] = -K
+    block[:, 3:, :3] = -K
+    return block.ravel()
+
+
 class _AxialMembers(Effect):
     def __init__(self, n_dof: int, connectivity, EA, rest_length):
         super().__init__(n_dof)
@@ -67,12 +77,7 @@ class _AxialMembers(Effect):
         n = d / length[:, None]
         nn = n[:, :, None] * n[:, None, :]
         K = (k - N / length)[:, None, None] * nn + (N / length)[:, None, None] * np.eye(3)
-        block = np.empty((len(K), 6, 6))
-        block[:, :3, :3] = K
-        block[:, 3:, 3:] = K
-        block[:, :3, 3:] = -K
-        block[:, 3:, :3] = -K
-        return block.ravel()
+        return _two_node_blocks(K)
 
     def member_results(self, q):
         _, length = self._geometry(q)
@@ -117,3 +122,37 @@ class Rope(_AxialMembers):
     def held_measures(self, q):
         # a rope may go slack within a step: its length is not held
         return None
+
+    def is_slack(self, q):
+        """Mask of the ropes not longer than their rest length at ``q``."""
+        return self._geometry(q)[1] <= self.L
+
+    def stretched_by(self, q, dq):
+        """Slack ropes that the straight step ``dq`` stretches in the linearised model.
+
+        A slack rope has no stiffness, so a Newton step does not see it; when
+        the step lengthens it past its rest length to first order
+        (``l + n . (dq_b - dq_a) > L``), the rope would resist it.
+        """
+        d, length = self._geometry(q)
+        n = d / length[:, None]
+        dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
+        return (length <= self.L) & (length + np.einsum("ij,ij->i", n, dd) > self.L)
+
+    def engaged_terms(self, q, engaged):
+        """Gradient and Hessian values of slack ropes modelled as taut springs.
+
+        Each rope of the mask ``engaged`` contributes ``1/2 (EA / L) (l + n . dd - L)^2``
+        for a step ``dd`` of its end-node difference: the rope's own energy
+        once the step has made it taut, linearised in its length. It carries no
+        tension at ``q``, so it has no geometric stiffness. Returns the
+        gradient over all DOFs at ``dd = 0`` and Hessian values in the order of
+        :meth:`hessian_pattern` (zero for the other ropes).
+        """
+        d, length = self._geometry(q)
+        n = d / length[:, None]
+        k = np.where(engaged, self.EA / self.L, 0.0)
+        f = (k * (length - self.L))[:, None] * n
+        grad = scatter(self.n_dof, self.dofs, np.concatenate([-f, f], axis=1))
+        K = k[:, None, None] * (n[:, :, None] * n[:, None, :])
+        return grad, _two_node_blocks(K)

@@ -726,6 +726,7 @@ def relax(
     max_wall_time: float | None = None,
     linear_solver: str = "auto",
     stiffness_continuation: bool = True,
+    slack_active_set: bool = True,
     start: str = "auto",
     callback: Callable[[RelaxationProgress], bool | None] | None = None,
     progress_every: int | None = None,
@@ -777,6 +778,13 @@ def relax(
         quadratic model is accurate only for tiny steps while the net is far
         from its shape; soft ropes let the early steps be large. The last
         stage has the true EA, so the equilibrium is the same.
+    slack_active_set : bool
+        Implicit scheme only: solve each step again with the slack ropes it
+        would stretch modelled as taut (:func:`_engage_slack_ropes`, at most
+        two more solves per step). A slack rope has no stiffness, so a plain
+        step overshoots wherever it pulls one taut and the line search must
+        cut it; on the 100 x 100 benchmark net the active set halves the
+        number of steps.
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -813,7 +821,8 @@ def relax(
     args = (system, st, lam, dt, int(max_iterations), max_wall_time, linear_solver, callback,
             max(int(progress_every), 1), t0)
     if scheme == "implicit":
-        return _run_implicit(*args, continuation=stiffness_continuation, fd_start=fd_start)
+        return _run_implicit(*args, continuation=stiffness_continuation, fd_start=fd_start,
+                             active_set=slack_active_set)
     return {"rk4": _run_rk4, "kinetic": _run_kinetic}[scheme](*args)
 
 
@@ -1052,7 +1061,7 @@ def _continuation_scales(system, st, lam) -> list[float]:
 
 
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True,
-                  fd_start=False):
+                  fd_start=False, active_set=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
     free = system.free
     solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free)
@@ -1074,7 +1083,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         # intermediate stages only need to land near their equilibrium
         a_tol = st.a_tol if last else max(st.a_tol, 0.1 * st.g_ref)
         v_tol = st.v_tol if last else np.inf
-        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos)
+        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set)
         q, h, v, success, message, vmax, amax, rnorm = out
         mon.n_fact = solver.factorizations
         mon.n_cg = solver.cg_iterations
@@ -1086,7 +1095,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         h = min(h, np.sqrt(st.L_ref / st.g_ref))
 
 
-def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
+def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True):
     """Pseudo-transient continuation on one System; returns the final state and status."""
     st = mon.st
     free = system.free
@@ -1100,6 +1109,9 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
     r = residual(q)
     v = np.zeros(free.size)
     K = None
+    # tension-only members whose slack state the step's model can take into account
+    ropes = [e for e in system.effects if hasattr(e, "stretched_by")] if active_set else []
+    engaged = None
     vmax, amax, rnorm = mon.measure(v, r)
     f_ext = system.external_force(lam)
     f_scale = max(float(np.linalg.norm(f_ext[free])), rnorm, 1e-300)
@@ -1127,7 +1139,10 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
         # inexact steps far from equilibrium, accurate ones close to it
         eta = min(1e-2, max(1e-10, float(np.sqrt(rnorm / f_scale))))
         try:
-            p = solver.solve(A, -r, eta)
+            if ropes:
+                p, engaged = _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged)
+            else:
+                p = solver.solve(A, -r, eta)
         except SingularMatrixError:
             mon.rejected += 1
             h *= 0.25
@@ -1167,6 +1182,49 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos):
         stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm, q[free], v)
         if stop:
             return q, h, v, False, stop, vmax, amax, rnorm
+
+
+def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds=2):
+    """The pseudo-time step with the slack ropes it would stretch modelled as taut springs.
+
+    The step's model treats a slack rope as absent, so a step that pulls one
+    taut overshoots (the rope's energy ``1/2 (EA / L) (l - L)^2`` appears at
+    once) and the line search cuts it. This is a primal-dual active-set
+    iteration on the piecewise quadratic model instead: the slack ropes that
+    the step lengthens past their rest length to first order join the model
+    (:meth:`~shellform.effects.axial.Rope.engaged_terms`), the step is solved
+    again, and the set is updated until it stops changing or after
+    ``rounds`` more solves. ``engaged`` (a mask per rope effect, e.g. the
+    previous step's final set) is where the set starts; ropes taut by now
+    leave it. Returns the step and its final set (None when empty).
+    """
+    free = system.free
+    dq = np.zeros(system.n_dof)
+    if engaged is not None:
+        engaged = [m & e.is_slack(q) for e, m in zip(ropes, engaged)]
+        if not any(m.any() for m in engaged):
+            engaged = None
+    p = None
+    for _ in range(rounds + 1):
+        if engaged is None:
+            p = solver.solve(A, -r, eta)
+        else:
+            g = np.zeros(system.n_dof)
+            vals = {}
+            for e, m in zip(ropes, engaged):
+                ge, vals[e] = e.engaged_terms(q, m)
+                g += ge
+            A_set = A.copy()
+            A_set.data += system.assemble_free(vals).data  # same structure as the tangent
+            p = solver.solve(A_set, -(r + g[free]), eta)
+        dq[free] = p
+        masks = [e.stretched_by(q, dq) for e in ropes]
+        if engaged is None and not any(m.any() for m in masks):
+            break
+        if engaged is not None and all(np.array_equal(a, b) for a, b in zip(masks, engaged)):
+            break
+        engaged = masks if any(m.any() for m in masks) else None
+    return p, engaged
 
 
 def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> float:

@@ -2,7 +2,8 @@
 
 Each ``*.toml`` here is one case for :func:`shellform.mra.run_mra_case`; results go to
 ``results/<name>/`` (``hanging.vtu``, ``inverted.vtu``, ``summary.json``) and the table of
-all cases to ``results/cases.md``.
+all cases to ``results/cases.md`` (cases not named on the command line from their last
+``summary.json``).
 
 Run:  python validation/mra/run_cases.py [scene.toml ...]
 """
@@ -13,6 +14,7 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # many small BLAS calls: threads only add overhead
 
+import json  # noqa: E402
 import sys  # noqa: E402
 import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -40,6 +42,14 @@ def main(paths) -> list[dict]:
               f"rise {s['rise']:.3f} m, residual/weight {s['residual_over_weight']:.1e}, {s['wall_time_s']:.2f} s")
         if saved:
             print("   " + saved)
+    # the table lists every case of this folder: those not run now from their last summary
+    ran = {s["name"] for s in rows}
+    for path in sorted(HERE.glob("*.toml")):
+        name = tomllib.loads(path.read_text()).get("name", path.stem)
+        saved = HERE / "results" / name / "summary.json"
+        if name not in ran and saved.exists():
+            rows.append(json.loads(saved.read_text()))
+    rows.sort(key=lambda s: s["name"])
     lines = ["| case | nodes | ropes | scheme | converged | iterations | max v [m/s] | max a [m/s^2] | slack | rise [m] "
              "| residual/weight | lengths min/mean/max [m] | length classes (within tol) | D.o.F / D.o.C | start comparison | time [s] |",
              "|" + "---|" * 16]
