@@ -783,8 +783,9 @@ def relax(
         would stretch modelled as taut (:func:`_engage_slack_ropes`, at most
         two more solves per step). A slack rope has no stiffness, so a plain
         step overshoots wherever it pulls one taut and the line search must
-        cut it; on the 100 x 100 benchmark net the active set halves the
-        number of steps.
+        cut it. On the benchmark nets the active set halves the number of
+        steps but not the number of factorisations, so the wall time stays
+        about the same (``benchmarks/results/bench_mra.md``).
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
