@@ -203,3 +203,18 @@ def test_case_solver_start_and_linear_solver_keys(tmp_path, start, expected):
     assert s["start"]["relaxation_start"] == expected
     with pytest.raises(ModelError, match="unknown start 'sideways'"):
         run_mra_case({**params, "solver": {"start": "sideways"}}, tmp_path)
+
+
+def test_ropes_between_suspension_points_are_reported_apart(tmp_path):
+    # an arched frame (2 m rise over 8 m) stretches the ropes along it by 11 %, more than any rope of the net
+    params = {
+        "geometry": {"type": "rectangle", "length_x": 8.0, "length_y": 4.0, "n_i": 8, "n_j": 4},
+        "supports": {"frames": [{"from": [0, 0], "to": [8, 0], "rise": 2.0}, {"from": [0, 4], "to": [8, 4]}]},
+        "ropes": {"slack": 0.05},
+        "output": {"meshes": False},
+    }
+    s = run_mra_case(params, tmp_path)
+    assert s["converged"]
+    assert s["n_ropes_between_supports"] == 16  # eight along each frame
+    assert s["tension_max_between_supports"] > s["tension_max"] > 0
+    assert 0 < s["tension_min_taut"] <= s["tension_max"]

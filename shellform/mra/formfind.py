@@ -68,9 +68,18 @@ class FormFindingResult:
     def q(self) -> np.ndarray:
         return self.relaxation.q
 
+    @property
+    def between_supports(self) -> np.ndarray:
+        """Ropes whose two ends are suspension points: their force comes from the support geometry alone."""
+        return np.isin(self.net.rope_edges, self.net.supports).all(axis=1)
+
     def summary(self) -> dict:
         r = self.relaxation
         taut = ~self.slack
+        fixed = self.between_supports
+        # a rope between two suspension points (e.g. along an arched frame) is stretched by
+        # where the supports are, not by the net's weight: its force is reported apart
+        net_tension = self.tension[~fixed]
         return {
             "converged": bool(r.success),
             "message": r.message,
@@ -91,8 +100,10 @@ class FormFindingResult:
             "n_taut_ropes": int(taut.sum()),
             "all_ropes_taut": bool(taut.all()),
             "rise": float(self.rise),
-            "tension_max": float(self.tension.max()) if len(self.tension) else 0.0,
-            "tension_min_taut": float(self.tension[taut].min()) if taut.any() else 0.0,
+            "tension_max": float(net_tension.max()) if len(net_tension) else 0.0,
+            "tension_min_taut": float(self.tension[taut & ~fixed].min()) if (taut & ~fixed).any() else 0.0,
+            "n_ropes_between_supports": int(fixed.sum()),
+            "tension_max_between_supports": float(self.tension[fixed].max()) if fixed.any() else 0.0,
             "total_weight": float(self.net.total_weight()),
             "reaction_sum": self.reactions.sum(axis=0).tolist(),
             "hypostatic": self.hypostatic.as_dict(),
