@@ -229,8 +229,8 @@ class CholeskyFactor:
     CHOLMOD (SuiteSparse, through cvxopt's binding) orders by approximate
     minimum degree like QDLDL but factorises dense supernodes with BLAS:
     on the tangent of a taut 316 x 316 rope net (295,788 unknowns) one
-    numeric factorisation took 0.7 s against QDLDL's 10.4 s, and 0.044 s
-    against 0.13 s at 100 x 100 (``benchmarks/bench_factorization.py``).
+    numeric refactorisation took 0.52 s against QDLDL's 9.9 s, and 0.021 s
+    against 0.095 s at 100 x 100 (``benchmarks/results/bench_factorization.md``).
     It has no inertia: use :class:`LDLFactor` where the matrix may be
     indefinite.
 

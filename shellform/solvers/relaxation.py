@@ -453,8 +453,8 @@ class _SPDSolve:
     (:class:`~shellform.solvers.linear.CholeskyFactor`) with its analysis
     kept for the fixed pattern: ``K + sigma M`` is positive definite here, so
     no inertia and no pivoting are needed. On the taut tangent of a
-    316 x 316 net one refactorisation took 0.7 s against QDLDL's 10.4 s
-    (``benchmarks/bench_factorization.py``).
+    316 x 316 net one refactorisation took 0.52 s against QDLDL's 9.9 s
+    (``benchmarks/results/bench_factorization.md``).
 
     ``"ldl"`` keeps one QDLDL object and refactorises numerically on the same
     pattern (the ordering and symbolic analysis are done once; QDLDL orders
