@@ -414,7 +414,7 @@ RELAXATION = Table(
                              "only) or 'direct'.", default="auto",
                              choices=("auto", "cholesky", "ldl", "nd", "amg", "direct")),
         "slack_active_set": Key("bool", "Implicit scheme: solve each step again with the slack ropes it would "
-                                "stretch modelled as taut (fewer, longer steps).", default=True),
+                                "stretch modelled as taut: about half the steps, each up to three solves.", default=True),
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is the force-density shape "
                      "for the implicit scheme and the flat planform for the explicit ones (as in the paper); "
                      "'reference' forces the planform, 'force_density' the force-density shape.", default="auto",
