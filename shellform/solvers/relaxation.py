@@ -1215,8 +1215,11 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
             for e, m in zip(ropes, engaged):
                 ge, vals[e] = e.engaged_terms(q, m)
                 g += ge
+            extra = system.assemble_free(vals)
+            if extra.nnz != A.nnz:  # both come from the tangent's fixed pattern
+                raise ModelError("relaxation: the engaged ropes' terms do not match the tangent's structure")
             A_set = A.copy()
-            A_set.data += system.assemble_free(vals).data  # same structure as the tangent
+            A_set.data += extra.data
             p = solver.solve(A_set, -(r + g[free]), eta)
         dq[free] = p
         masks = [e.stretched_by(q, dq) for e in ropes]
