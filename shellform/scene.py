@@ -97,6 +97,7 @@ _ANALYSIS_SCOPE = {
 #: time steps of a dynamics scene: beyond this a unit is almost certainly off
 MAX_TIME_STEPS = 1.0e8
 
+
 def _source(data: dict) -> str:
     """'nodes', 'planform', 'hemisphere' or 'file' (after [geometry] was validated)."""
     if data.get("nodes") is not None:

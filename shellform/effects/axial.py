@@ -116,7 +116,7 @@ class Rope(_AxialMembers):
 
     def member_results(self, q):
         out = super().member_results(q)
-        out["slack"] = (out["length"] <= self.L).astype(np.int8)
+        out["slack"] = (~self._active(out["length"])).astype(np.int8)
         return out
 
     def held_measures(self, q):
@@ -125,7 +125,7 @@ class Rope(_AxialMembers):
 
     def is_slack(self, q):
         """Mask of the ropes not longer than their rest length at ``q``."""
-        return self._geometry(q)[1] <= self.L
+        return ~self._active(self._geometry(q)[1])
 
     def stretched_by(self, q, dq):
         """Slack ropes that the straight step ``dq`` stretches in the linearised model.
@@ -137,7 +137,7 @@ class Rope(_AxialMembers):
         d, length = self._geometry(q)
         n = d / length[:, None]
         dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
-        return (length <= self.L) & (length + np.einsum("ij,ij->i", n, dd) > self.L)
+        return ~self._active(length) & self._active(length + np.einsum("ij,ij->i", n, dd))
 
     def engaged_terms(self, q, engaged):
         """Gradient and Hessian values of slack ropes modelled as taut springs.

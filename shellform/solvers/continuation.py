@@ -19,8 +19,9 @@ constraint
     |du|^2 + c^2 dp^2 = ds^2          (spherical; ``c = 0``: cylindrical),
 
 where ``c = psi * |dG/dp| / k`` (``k`` the larger of the mean diagonals of the
-tangent at the starting and at the reference state) is the displacement per unit parameter of a typical stiffness, so
-both parts of the metric have the same weight for ``psi = 1``. The constraint is solved for the parameter correction
+tangent at the starting and at the reference state) is the displacement per
+unit parameter of a typical stiffness, so both parts of the metric have the
+same weight for ``psi = 1``. The constraint is solved for the parameter correction
 as a quadratic (Crisfield), picking the root closest to the current increment;
 where the tangent cannot be factorised (exactly at a limit point) the bordered
 system with the linearised constraint is solved instead.
