@@ -97,6 +97,8 @@ def dome_rods(result, section: dict, plane_z: float | None = None):
 def _fingerprint(params: dict) -> str:
     """What a saved state depends on: the net (not the solver settings, which a resumed run may change)."""
     net = {k: params[k] for k in ("geometry", "supports", "ropes", "masses", "loads")}
+    # the strain limit only decides which ropes a report names
+    net["ropes"] = {k: v for k, v in net["ropes"].items() if k != "strain_limit"}
     return hashlib.sha256(json.dumps(net, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

@@ -556,6 +556,9 @@ SCENE = Table(
                                        **_POS),
                 "mass_per_length": Key("float", "Rope mass, lumped half to each end node.", default=1.0,
                                        unit="kg/m", **_NONNEG),
+                "strain_limit": Key("float", "Net ropes strained beyond this at rest are named in a warning and "
+                                    "counted in the summary (n_overstretched_ropes): the shape there depends on EA.",
+                                    default=0.01, **_POS),
             },
         ),
         "rods": Table(

@@ -10,6 +10,7 @@ from shellform import MechanismError, ModelError, SceneError
 from shellform.geometry import dish, disk_grid, rectangle_grid
 from shellform.mra import (
     HypostaticWarning,
+    OverstretchWarning,
     control_lengths,
     fit_height_field,
     form_find,
@@ -157,6 +158,9 @@ def test_run_mra_case_writes_meshes_and_summary(tmp_path):
     assert len(hang.cells_dict["line"]) == 85 and len(hang.cells_dict["quad"]) == 36
     assert np.allclose(dome.points[:, 2], -hang.points[:, 2])
     assert np.all(dome.cell_data_dict["axial_force"]["line"] < 0)
+    rope = hang.cell_data_dict
+    assert np.allclose(rope["strain"]["line"], rope["length"]["line"] / rope["rest_length"]["line"] - 1)
+    assert rope["strain"]["line"].max() == pytest.approx(s["strain_max"])
     assert any("iteration" in line for line in lines)
 
 
@@ -213,8 +217,37 @@ def test_ropes_between_suspension_points_are_reported_apart(tmp_path):
         "ropes": {"slack": 0.05},
         "output": {"meshes": False},
     }
-    s = run_mra_case(params, tmp_path)
+    with pytest.warns(OverstretchWarning):
+        s = run_mra_case(params, tmp_path)
     assert s["converged"]
     assert s["n_ropes_between_supports"] == 16  # eight along each frame
     assert s["tension_max_between_supports"] > s["tension_max"] > 0
     assert 0 < s["tension_min_taut"] <= s["tension_max"]
+
+
+def _net_under_an_arch(rise):
+    grid = rectangle_grid(8.0, 4.0, 8, 4)
+    frames = {"frames": [{"from": [0, 0], "to": [8, 0], "rise": rise}, {"from": [0, 4], "to": [8, 4]}]}
+    return hanging_net(grid, frames, slack=0.05)
+
+
+def test_ropes_the_supports_overstretch_are_named():
+    # a 2 m arch over a 4 m wide net with 5 % slack: at mid-span the cross ropes must reach
+    # from (4, 0, 2) to (4, 4, 0), 4.47 m, with 4.2 m of rope: 6.5 % of stretch
+    with pytest.warns(OverstretchWarning, match=r"stretched beyond 1 % at rest, the worst by 6\.[0-9]+ %"):
+        res = form_find(_net_under_an_arch(2.0))
+    assert res.converged
+    s = res.summary()
+    assert 0.06 < s["strain_max"] < 0.07 and s["n_overstretched_ropes"] > 0
+    worst = np.argmax(np.where(res.between_supports, -np.inf, res.strain))
+    # the worst rope crosses the net at mid-span, starting on the arch
+    a, b = res.net.rope_edges[worst]
+    assert res.net.structure.nodes[[a, b], 0] == pytest.approx([4.0, 4.0])
+    assert f"nodes {a}-{b}" in s["warnings"][-1]
+    # a lower arch leaves the ropes at the strain their weight gives (EA = 1e4 x weight)
+    low = form_find(_net_under_an_arch(0.5))
+    assert low.summary()["strain_max"] < 1e-3 and not low.warnings
+    # the limit is the caller's
+    assert form_find(_net_under_an_arch(2.0), strain_limit=0.1).summary()["n_overstretched_ropes"] == 0
+    with pytest.raises(ModelError, match="strain_limit must be a positive number"):
+        form_find(_net_under_an_arch(0.5), strain_limit=float("nan"))

@@ -14,7 +14,7 @@ Typical use::
 """
 
 from .case import build_grid, build_net, run_mra_case
-from .formfind import FormFindingResult, HypostaticWarning, form_find, rope_state
+from .formfind import FormFindingResult, HypostaticWarning, OverstretchWarning, form_find, rope_state
 from .hypostatic import HypostaticReport, hypostatic_check
 from .inversion import InvertedShell, invert
 from .lengths import LengthControlResult, control_lengths, kmeans_1d, length_statistics
@@ -26,6 +26,7 @@ __all__ = [
     "HangingNet",
     "HypostaticReport",
     "HypostaticWarning",
+    "OverstretchWarning",
     "InvertedShell",
     "LengthControlResult",
     "build_grid",

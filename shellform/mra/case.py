@@ -24,7 +24,7 @@ from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
 from ..io.summary import write_json
-from .formfind import FormFindingResult, HypostaticWarning, form_find
+from .formfind import STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, form_find
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
@@ -34,7 +34,7 @@ DEFAULTS = {
     "name": "mra",
     "geometry": {},
     "supports": {},
-    "ropes": {"slack": 0.0, "EA": None, "stiffness_ratio": 1.0e4, "mass_per_length": 1.0},
+    "ropes": {"slack": 0.0, "EA": None, "stiffness_ratio": 1.0e4, "mass_per_length": 1.0, "strain_limit": STRAIN_LIMIT},
     "masses": {"node_mass": 0.0},
     "loads": {"gravity": [0.0, 0.0, -9.81]},
     "solver": {"scheme": "implicit", "rtol": 1e-6, "velocity_tol": None, "acceleration_tol": None,
@@ -109,7 +109,7 @@ def _solver_options(p: dict, progress: Callable[[str], None] | None) -> dict:
             "acceleration_tol": s.pop("acceleration_tol"), "damping": s.pop("damping"),
             "linear_solver": s.pop("linear_solver"), "dt": s.pop("dt"), "start": s.pop("start"),
             "slack_active_set": bool(s.pop("slack_active_set")),
-            "max_wall_time": s.pop("max_wall_time")}
+            "max_wall_time": s.pop("max_wall_time"), "strain_limit": float(p["ropes"]["strain_limit"])}
     if s.get("max_iterations") is not None:
         opts["max_iterations"] = int(s["max_iterations"])
     if progress is not None:
@@ -149,8 +149,10 @@ def start_state(p: dict, net: HangingNet, options: dict) -> tuple[np.ndarray | N
         coarse_p = _coarsened(p, int(st["coarsening"]))
         coarse_net = build_net(coarse_p)
         with warnings.catch_warnings():
-            # a coarse net often has too few free nodes for Eqs. (11)-(12); it only shapes the start
+            # a coarse net often has too few free nodes for Eqs. (11)-(12); it only shapes the
+            # start, and the full net reports its own stretched ropes
             warnings.simplefilter("ignore", HypostaticWarning)
+            warnings.simplefilter("ignore", OverstretchWarning)
             coarse = form_find(coarse_net, **{**options, "callback": None})
         pts = coarse.positions.copy()
         pts[:, 2] -= coarse_net.structure.nodes[:, 2]
@@ -200,7 +202,7 @@ def write_meshes(out: Path, res: FormFindingResult, inv: InvertedShell, tag: str
     net = res.net
     hang = net_mesh(net, res.positions,
                     {"tension": res.tension, "slack": res.slack.astype(float), "length": res.length,
-                     "rest_length": net.rest_length, "family": net.family.astype(float)},
+                     "rest_length": net.rest_length, "strain": res.strain, "family": net.family.astype(float)},
                     {"displacement": res.positions - net.structure.nodes})
     names = [f"hanging{tag}.vtu"]
     write_mesh(out / names[0], hang)

@@ -3,7 +3,9 @@
 :func:`form_find` checks the net (Eqs. 11-12), lets it fall to rest with the
 chosen relaxation scheme and reports rope tensions, which ropes ended taut or
 slack, the reactions at the suspension points, the equilibrium residual
-relative to the weight, and the rise of the shape.
+relative to the weight, and the rise of the shape. Ropes stretched far beyond
+what a nearly inextensible rope allows are named in a warning: the shape
+there depends on EA, not on the rest lengths alone.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import ModelError
 from ..solvers.relaxation import RelaxationResult, relax
 from .hypostatic import HypostaticReport, hypostatic_check
 from .net import HangingNet
@@ -20,6 +23,16 @@ from .net import HangingNet
 
 class HypostaticWarning(UserWarning):
     """The net is not hypostatic (D.o.F <= D.o.C, Eqs. 11-12)."""
+
+
+class OverstretchWarning(UserWarning):
+    """Ropes of the net end stretched beyond the strain limit."""
+
+
+#: Rope strain above which the hanging shape is reported as depending on EA. MRA
+#: ropes are nearly inextensible (strains about 1 / stiffness_ratio = 1e-4 by
+#: default), so 1 % is a hundred times what the weight alone should cause.
+STRAIN_LIMIT = 0.01
 
 
 @dataclass
@@ -59,6 +72,7 @@ class FormFindingResult:
     residual_over_weight: float
     rise: float
     warnings: list = field(default_factory=list)
+    strain_limit: float = STRAIN_LIMIT
 
     @property
     def converged(self) -> bool:
@@ -67,6 +81,16 @@ class FormFindingResult:
     @property
     def q(self) -> np.ndarray:
         return self.relaxation.q
+
+    @property
+    def strain(self) -> np.ndarray:
+        """Engineering strain of every rope (negative for slack ropes)."""
+        return self.length / self.net.rest_length - 1.0
+
+    @property
+    def overstretched(self) -> np.ndarray:
+        """Net ropes (not between two suspension points) strained beyond ``strain_limit``."""
+        return (self.strain > self.strain_limit) & ~self.between_supports
 
     @property
     def between_supports(self) -> np.ndarray:
@@ -80,6 +104,7 @@ class FormFindingResult:
         # a rope between two suspension points (e.g. along an arched frame) is stretched by
         # where the supports are, not by the net's weight: its force is reported apart
         net_tension = self.tension[~fixed]
+        net_strain = self.strain[~fixed]
         return {
             "converged": bool(r.success),
             "message": r.message,
@@ -104,6 +129,9 @@ class FormFindingResult:
             "tension_min_taut": float(self.tension[taut & ~fixed].min()) if (taut & ~fixed).any() else 0.0,
             "n_ropes_between_supports": int(fixed.sum()),
             "tension_max_between_supports": float(self.tension[fixed].max()) if fixed.any() else 0.0,
+            "strain_max": float(net_strain.max()) if len(net_strain) else 0.0,
+            "strain_limit": float(self.strain_limit),
+            "n_overstretched_ropes": int(self.overstretched.sum()),
             "total_weight": float(self.net.total_weight()),
             "reaction_sum": self.reactions.sum(axis=0).tolist(),
             "hypostatic": self.hypostatic.as_dict(),
@@ -122,8 +150,34 @@ def rope_state(net: HangingNet, q: np.ndarray):
     return tension, length, slack
 
 
-def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: HypostaticReport, notes=()):
-    """Reports of a relaxed state."""
+def _check_strain_limit(strain_limit) -> None:
+    if not (isinstance(strain_limit, (int, float)) and np.isfinite(strain_limit) and strain_limit > 0):
+        raise ModelError(f"form finding: strain_limit must be a positive number, got {strain_limit!r}")
+
+
+def overstretch_message(net: HangingNet, strain: np.ndarray, mask: np.ndarray, limit: float) -> str | None:
+    """A warning naming the ropes in ``mask`` strained beyond ``limit``, worst first; None if there are none."""
+    idx = np.flatnonzero(mask & (strain > limit))
+    if idx.size == 0:
+        return None
+    worst = idx[np.argmax(strain[idx])]
+    a, b = net.rope_edges[worst]
+    pa, pb = net.structure.nodes[a], net.structure.nodes[b]
+    return (f"{idx.size} rope(s) stretched beyond {100 * limit:g} % at rest, the worst by "
+            f"{100 * strain[worst]:.2f} % (rope {worst}, nodes {a}-{b}, planform ({pa[0]:.3g}, {pa[1]:.3g}) to "
+            f"({pb[0]:.3g}, {pb[1]:.3g})): the shape there depends on EA, not on the rest lengths alone. "
+            "The suspension points may hold the net further apart than its ropes reach (for example an "
+            "arched frame on a flat planform), or EA is too low for nearly inextensible ropes")
+
+
+def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: HypostaticReport, notes=(),
+                   strain_limit: float = STRAIN_LIMIT):
+    """Reports of a relaxed state.
+
+    Appends to ``notes`` (returned as the result's ``warnings``) a message when
+    net ropes end strained beyond ``strain_limit``.
+    """
+    _check_strain_limit(strain_limit)
     q = res.q
     n = net.structure.n_nodes
     x = q[: 3 * n].reshape(n, 3)
@@ -132,14 +186,19 @@ def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: Hypos
     weight = net.total_weight()
     resid = system.residual(q)[system.free]
     rise = float(x[net.supports, 2].max() - x[:, 2].min())
-    return FormFindingResult(
+    out = FormFindingResult(
         net=net, relaxation=res, positions=x, tension=tension, length=length, slack=slack, reactions=R,
         hypostatic=report, residual_over_weight=float(np.linalg.norm(resid) / max(weight, 1e-300)), rise=rise,
-        warnings=list(notes),
+        warnings=list(notes), strain_limit=float(strain_limit),
     )
+    message = overstretch_message(net, out.strain, ~out.between_supports, strain_limit)
+    if message:
+        out.warnings.append(message)
+    return out
 
 
-def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit", **relax_options):
+def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit",
+              strain_limit: float = STRAIN_LIMIT, **relax_options):
     """Let the net fall into its hanging shape.
 
     Parameters
@@ -151,6 +210,9 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         explicit ones; ``start="reference"`` forces the planform.
     scheme : {"implicit", "rk4", "kinetic"}
         Relaxation scheme (see :mod:`shellform.solvers.relaxation`).
+    strain_limit : float
+        Net ropes strained beyond this at rest are named in an
+        :class:`OverstretchWarning` (default 1 %).
     **relax_options
         Passed to :func:`shellform.solvers.relaxation.relax` (tolerances,
         damping, callback, ...).
@@ -164,6 +226,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     MechanismError
         When the net is a mechanism the solver cannot handle.
     """
+    _check_strain_limit(strain_limit)
     report = hypostatic_check(net.structure)
     notes = []
     if report.warning:
@@ -171,4 +234,8 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         notes.append(report.warning)
     system = net.system()
     res = relax(system, q0, scheme=scheme, **relax_options)
-    return evaluate_state(net, system, res, report, notes)
+    out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
+    if out.warnings[len(notes):]:
+        for w in out.warnings[len(notes):]:
+            warnings.warn(w, OverstretchWarning, stacklevel=2)
+    return out
