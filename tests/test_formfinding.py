@@ -120,6 +120,10 @@ def test_length_control_increases_conforming_ropes():
     stats = lc.summary()["statistics"]
     assert stats["n_conforming"] == max(lc.n_conforming[1:])
     assert stats["n_classes"] == 3
+    # the strains of the kept round, which say whether its lengths are the cut lengths too
+    kept = lc.result.length / lc.result.net.rest_length - 1
+    assert lc.summary()["strain_max"] == pytest.approx(kept.max())
+    assert lc.summary()["n_overstretched_ropes"] == int(np.sum(kept > 0.01))
 
 
 def test_surface_start_reaches_the_same_equilibrium(net_9x4, hung_9x4):

@@ -138,9 +138,11 @@ class LengthControlResult:
 
     def summary(self) -> dict:
         stats = length_statistics(self.result.length, self.tol, centres=self.centres)
+        final = self.result.summary()
         return {"n_classes": int(len(self.centres)), "centres": self.centres.tolist(),
                 "n_conforming_per_round": list(self.n_conforming), "rounds": int(self.rounds),
                 "converged": bool(self.result.converged), "statistics": stats,
+                "strain_max": final["strain_max"], "n_overstretched_ropes": final["n_overstretched_ropes"],
                 "wall_time_s": float(self.wall_time_s)}
 
 

@@ -51,8 +51,8 @@ def main(paths) -> list[dict]:
             rows.append(json.loads(saved.read_text()))
     rows.sort(key=lambda s: s["name"])
     lines = ["| case | nodes | ropes | scheme | converged | iterations | max v [m/s] | max a [m/s^2] | slack | rise [m] "
-             "| residual/weight | lengths min/mean/max [m] | length classes (within tol) | D.o.F / D.o.C | start comparison | time [s] |",
-             "|" + "---|" * 16]
+             "| residual/weight | strain max (ropes > limit) | lengths min/mean/max [m] | length classes (within tol) | D.o.F / D.o.C | start comparison | time [s] |",
+             "|" + "---|" * 17]
     for s in rows:
         L = s["rope_lengths"]
         h = s["hypostatic"]
@@ -64,12 +64,13 @@ def main(paths) -> list[dict]:
         lines.append(
             f"| {s['name']} | {s['n_nodes']} | {s['n_ropes']} | {s['scheme']} | {s['converged']} | {s['iterations']} "
             f"| {s['max_velocity']:.1e} | {s['max_acceleration']:.1e} | {s['n_slack_ropes']} | {s['rise']:.3f} "
-            f"| {s['residual_over_weight']:.1e} | {L['min']:.3f}/{L['mean']:.3f}/{L['max']:.3f} | {L['n_classes']} "
+            f"| {s['residual_over_weight']:.1e} | {s['strain_max']:.1e} ({s['n_overstretched_ropes']}) "
+            f"| {L['min']:.3f}/{L['mean']:.3f}/{L['max']:.3f} | {L['n_classes']} "
             f"| {h['dof']} / {h['doc']} | {cmp} | {s['wall_time_s']:.2f} |")
         if "length_control" in s:
             lc = s["length_control"]
             lines.append(f"|  ... length control ({lc['n_classes']} classes) | | | | {lc['converged']} | | | | | | | "
-                         f"conforming per round {lc['n_conforming_per_round']} of {s['n_ropes']} | | | | "
+                         f"{lc['strain_max']:.1e} ({lc['n_overstretched_ropes']}) | conforming per round {lc['n_conforming_per_round']} of {s['n_ropes']} | | | | "
                          f"{lc['wall_time_s']:.2f} |")
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "cases.md").write_text("\n".join(lines) + "\n")
