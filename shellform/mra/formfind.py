@@ -155,15 +155,16 @@ def _check_strain_limit(strain_limit) -> None:
         raise ModelError(f"form finding: strain_limit must be a positive number, got {strain_limit!r}")
 
 
-def overstretch_message(net: HangingNet, strain: np.ndarray, mask: np.ndarray, limit: float) -> str | None:
-    """A warning naming the ropes in ``mask`` strained beyond ``limit``, worst first; None if there are none."""
-    idx = np.flatnonzero(mask & (strain > limit))
+def overstretch_message(result: FormFindingResult) -> str | None:
+    """A warning counting the result's overstretched ropes and naming the worst; None if there are none."""
+    idx = np.flatnonzero(result.overstretched)
     if idx.size == 0:
         return None
+    strain = result.strain
     worst = idx[np.argmax(strain[idx])]
-    a, b = net.rope_edges[worst]
-    pa, pb = net.structure.nodes[a], net.structure.nodes[b]
-    return (f"{idx.size} rope(s) stretched beyond {100 * limit:g} % at rest, the worst by "
+    a, b = result.net.rope_edges[worst]
+    pa, pb = result.net.structure.nodes[a], result.net.structure.nodes[b]
+    return (f"{idx.size} rope(s) stretched beyond {100 * result.strain_limit:g} % at rest, the worst by "
             f"{100 * strain[worst]:.2f} % (rope {worst}, nodes {a}-{b}, planform ({pa[0]:.3g}, {pa[1]:.3g}) to "
             f"({pb[0]:.3g}, {pb[1]:.3g})): the shape there depends on EA, not on the rest lengths alone. "
             "The suspension points may hold the net further apart than its ropes reach (for example an "
@@ -174,10 +175,9 @@ def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: Hypos
                    strain_limit: float = STRAIN_LIMIT):
     """Reports of a relaxed state.
 
-    Appends to ``notes`` (returned as the result's ``warnings``) a message when
-    net ropes end strained beyond ``strain_limit``.
+    The result's ``warnings`` are ``notes`` followed by a message when net
+    ropes end strained beyond ``strain_limit``.
     """
-    _check_strain_limit(strain_limit)
     q = res.q
     n = net.structure.n_nodes
     x = q[: 3 * n].reshape(n, 3)
@@ -191,7 +191,7 @@ def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: Hypos
         hypostatic=report, residual_over_weight=float(np.linalg.norm(resid) / max(weight, 1e-300)), rise=rise,
         warnings=list(notes), strain_limit=float(strain_limit),
     )
-    message = overstretch_message(net, out.strain, ~out.between_supports, strain_limit)
+    message = overstretch_message(out)
     if message:
         out.warnings.append(message)
     return out
@@ -235,7 +235,6 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     system = net.system()
     res = relax(system, q0, scheme=scheme, **relax_options)
     out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
-    if out.warnings[len(notes):]:
-        for w in out.warnings[len(notes):]:
-            warnings.warn(w, OverstretchWarning, stacklevel=2)
+    for w in out.warnings[len(notes):]:
+        warnings.warn(w, OverstretchWarning, stacklevel=2)
     return out
