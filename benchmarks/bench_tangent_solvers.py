@@ -87,7 +87,7 @@ def solve_both(A: sp.csr_matrix, b: np.ndarray, maxiter: int) -> dict:
         its[0] += 1
 
     t0 = time.perf_counter()
-    y, info = spla.cg(A, b, rtol=1e-8, maxiter=maxiter, M=amg._M, callback=count)
+    y, info = spla.cg(A, b, rtol=1e-8, maxiter=maxiter, M=amg.preconditioner, callback=count)
     t_cg = time.perf_counter() - t0
     nb = float(np.linalg.norm(b))
     return {"cholmod_s": t_chol, "cholmod_residual": float(np.linalg.norm(A @ x - b) / nb),

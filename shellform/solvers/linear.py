@@ -360,10 +360,11 @@ class AMGFactor:
             self._ml = pyamg.smoothed_aggregation_solver(self.A.tobsr(blocksize=(3, 3)), B=B, symmetry="symmetric")
         else:
             self._ml = pyamg.smoothed_aggregation_solver(self.A, symmetry="symmetric")
-        self._M = self._ml.aspreconditioner(cycle="V")
+        #: one V-cycle as a linear operator, for callers running their own Krylov method
+        self.preconditioner = self._ml.aspreconditioner(cycle="V")
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        x, info = spla.cg(self.A, b, rtol=self.rtol, maxiter=self.maxiter, M=self._M)
+        x, info = spla.cg(self.A, b, rtol=self.rtol, maxiter=self.maxiter, M=self.preconditioner)
         if info != 0 or not np.all(np.isfinite(x)):
             raise SingularMatrixError(
                 f"AMG-preconditioned CG did not converge (info={info}); the matrix may not be positive definite"
