@@ -255,3 +255,13 @@ def test_ropes_the_supports_overstretch_are_named():
     assert form_find(_net_under_an_arch(2.0), strain_limit=0.1).summary()["n_overstretched_ropes"] == 0
     with pytest.raises(ModelError, match="strain_limit must be a positive number"):
         form_find(_net_under_an_arch(0.5), strain_limit=float("nan"))
+
+
+def test_scene_reference_states_the_case_defaults_of_the_ropes():
+    # the schema (what `shellform schema` and docs/scenes.md print) cannot import the solver
+    # modules, so its defaults are written out: they must be the ones a case uses
+    from shellform.mra.case import DEFAULTS
+    from shellform.schema import SCENE
+
+    ropes = SCENE.keys["ropes"].keys
+    assert {k: ropes[k].default for k in DEFAULTS["ropes"]} == DEFAULTS["ropes"]
