@@ -89,22 +89,12 @@ class FormFindingResult:
 
     @property
     def overstretched(self) -> np.ndarray:
-        """Net ropes (not between two suspension points) strained beyond ``strain_limit``."""
-        return (self.strain > self.strain_limit) & ~self.between_supports
-
-    @property
-    def between_supports(self) -> np.ndarray:
-        """Ropes whose two ends are suspension points: their force comes from the support geometry alone."""
-        return np.isin(self.net.rope_edges, self.net.supports).all(axis=1)
+        """Ropes strained beyond ``strain_limit``."""
+        return self.strain > self.strain_limit
 
     def summary(self) -> dict:
         r = self.relaxation
         taut = ~self.slack
-        fixed = self.between_supports
-        # a rope between two suspension points (e.g. along an arched frame) is stretched by
-        # where the supports are, not by the net's weight: its force is reported apart
-        net_tension = self.tension[~fixed]
-        net_strain = self.strain[~fixed]
         return {
             "converged": bool(r.success),
             "message": r.message,
@@ -125,11 +115,10 @@ class FormFindingResult:
             "n_taut_ropes": int(taut.sum()),
             "all_ropes_taut": bool(taut.all()),
             "rise": float(self.rise),
-            "tension_max": float(net_tension.max()) if len(net_tension) else 0.0,
-            "tension_min_taut": float(self.tension[taut & ~fixed].min()) if (taut & ~fixed).any() else 0.0,
-            "n_ropes_between_supports": int(fixed.sum()),
-            "tension_max_between_supports": float(self.tension[fixed].max()) if fixed.any() else 0.0,
-            "strain_max": float(net_strain.max()) if len(net_strain) else 0.0,
+            "tension_max": float(self.tension.max()),
+            "tension_min_taut": float(self.tension[taut].min()) if taut.any() else 0.0,
+            "n_ropes_between_supports": int(len(self.net.info.get("held_ropes", ()))),
+            "strain_max": float(self.strain.max()),
             "strain_limit": float(self.strain_limit),
             "n_overstretched_ropes": int(self.overstretched.sum()),
             "total_weight": float(self.net.total_weight()),

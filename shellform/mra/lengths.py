@@ -171,6 +171,11 @@ def control_lengths(result: FormFindingResult, n_classes: int = 3, tol: float = 
     its class length, and relaxes the net again from the current shape. The
     round with the most conforming ropes is kept.
 
+    Ropes strained beyond the result's strain limit keep their rest length
+    and take no part in the clustering: their length is set by where the
+    suspension points are, not by their rest length, so a shorter rope
+    would only stretch further (:attr:`FormFindingResult.overstretched`).
+
     Note that changing rest lengths changes the rope masses (mass per length
     is kept), so the weight changes slightly; the shape stays funicular for
     the modified net.
@@ -179,16 +184,17 @@ def control_lengths(result: FormFindingResult, n_classes: int = 3, tol: float = 
     if n_classes < 1:
         raise ModelError(f"length control: n_classes must be at least 1, got {n_classes}")
     best = result
-    centres, labels = kmeans_1d(result.length, n_classes)
+    centres, labels = _classes(result, n_classes)
     history = [int(np.sum(np.abs(result.length - centres[labels]) <= tol * centres[labels]))]
     best_count, best_centres, best_labels = history[0], centres, labels
     current = result
     for _ in range(int(rounds)):
-        centres, labels = kmeans_1d(current.length, n_classes)
+        centres, labels = _classes(current, n_classes)
         net = current.net
         # keep each rope's current stretch (length / rest length) at its class length
         stretch = np.maximum(current.length / net.rest_length, 1.0)
-        rest = centres[labels] / stretch
+        controlled = ~current.overstretched
+        rest = np.where(controlled, centres[labels] / stretch, net.rest_length)
         new_net = _with_rest_lengths(net, rest)
         current = form_find(new_net, current.q, **form_options)
         conf = int(np.sum(np.abs(current.length - centres[labels]) <= tol * centres[labels]))
@@ -199,3 +205,13 @@ def control_lengths(result: FormFindingResult, n_classes: int = 3, tol: float = 
             break
     return LengthControlResult(best, best_centres, best_labels, history, len(history) - 1,
                                time.perf_counter() - t0, tol)
+
+
+def _classes(result: FormFindingResult, n_classes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Length classes of the ropes that are not overstretched, and the nearest class of every rope."""
+    controlled = ~result.overstretched
+    if not controlled.any():
+        raise ModelError("length control: every rope is stretched beyond the strain limit; "
+                         "no rope length is set by its rest length")
+    centres, _ = kmeans_1d(result.length[controlled], n_classes)
+    return centres, np.argmin(np.abs(result.length[:, None] - centres[None, :]), axis=1)

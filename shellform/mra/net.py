@@ -4,7 +4,10 @@ The quad edges become ropes, the grid nodes become masses, and the chosen
 nodes become suspension points (fixed supports). Rope rest lengths are
 ``(1 + sc)`` times the edge lengths of the planform grid (the slack
 coefficient ``sc`` of the MRA paper), so suspension points may be lifted
-(edge frames, arches) without changing the ropes.
+(edge frames, arches) without changing the ropes. A grid edge between two
+suspension points held in every direction (along an edge frame, around the
+rim of a net hung from its boundary) is part of the support, not of the net:
+it is left out of the model and its weight hangs on the two supports.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import numpy as np
 from ..assembly import System, build_system
 from ..errors import ModelError
 from ..geometry.grids import QuadGrid
-from ..model import STANDARD_GRAVITY, Structure
+from ..model import STANDARD_GRAVITY, Structure, parse_dofs
 
 
 @dataclass
@@ -34,7 +37,10 @@ class HangingNet:
     supports : ndarray
         Node numbers of the suspension points.
     rope_edges : ndarray, shape (m, 2)
-        All ropes, in the order of the two groups (``i`` family first).
+        The ropes of the model, in the order of the two groups (``i`` family
+        first). Grid edges between two suspension points held in every
+        direction are not among them (``info["held_ropes"]``): they cannot
+        move, so :func:`hanging_net` hangs their weight on the supports instead.
     family : ndarray, shape (m,)
         0 for ropes along ``i``, 1 along ``j``.
     """
@@ -191,12 +197,20 @@ def hanging_net(
         raise ModelError("masses: node_mass must be finite and non-negative")
     if mass_per_length < 0:
         raise ModelError(f"ropes: mass_per_length must be non-negative, got {mass_per_length}")
+    rest = (1.0 + sc) * flat_length
+    held = _held_ropes(edges, nodes_sup, dofs)
+    if held.all():
+        raise ModelError("ropes: every rope joins two suspension points; there is no net left to hang")
+    # A rope whose two ends are held in every direction cannot move: its tension is set by
+    # where the supports are (an arched frame stretches the ropes along it by its rise), not
+    # by the net. It is left out of the model, its weight hanging on its two ends, so that
+    # the reactions and rope reports are the net's own.
+    point_mass = point_mass + _end_masses(edges[held], 0.5 * mass_per_length * rest[held], grid.n_nodes)
     if np.any(point_mass > 0):
         s.add_point_mass(np.arange(grid.n_nodes), point_mass)
     s.set_gravity(gravity)
     if loads is not None:
         s.add_load(np.arange(grid.n_nodes), np.asarray(loads, dtype=float), scaled=False)
-    rest = (1.0 + sc) * flat_length
     if EA is None:
         weight = float((point_mass.sum() + mass_per_length * rest.sum()) * np.linalg.norm(gravity))
         if loads is not None:
@@ -205,10 +219,25 @@ def hanging_net(
             raise ModelError("ropes: the net has no weight and no load; give EA explicitly")
         EA = stiffness_ratio * weight
     EA = np.broadcast_to(np.asarray(EA, dtype=float), (len(edges),))
+    net_rope = ~held
     for fam, name in ((0, "ropes_i"), (1, "ropes_j")):
-        sel = family == fam
+        sel = (family == fam) & net_rope
         if np.any(sel):
             s.add_ropes(edges[sel], EA=EA[sel], rest_length=rest[sel], mass_per_length=mass_per_length, name=name)
     s.fix(nodes_sup, dofs)
-    return HangingNet(grid=grid, structure=s, supports=nodes_sup, rope_edges=edges, family=family,
-                      info={"slack": sc, "flat_length": flat_length})
+    return HangingNet(grid=grid, structure=s, supports=nodes_sup, rope_edges=edges[net_rope],
+                      family=family[net_rope],
+                      info={"slack": sc[net_rope], "flat_length": flat_length[net_rope], "held_ropes": edges[held]})
+
+
+def _held_ropes(edges: np.ndarray, supports: np.ndarray, dofs: str) -> np.ndarray:
+    """Ropes whose two ends are suspension points held in all three directions."""
+    if len(parse_dofs(dofs, "support dofs")) < 3:
+        return np.zeros(len(edges), dtype=bool)  # sliding supports: a rope between two of them can move
+    return np.isin(edges, supports).all(axis=1)
+
+
+def _end_masses(edges: np.ndarray, half_mass: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Nodal masses of ropes lumped half to each end."""
+    return (np.bincount(edges[:, 0], half_mass, minlength=n_nodes)
+            + np.bincount(edges[:, 1], half_mass, minlength=n_nodes))
