@@ -183,3 +183,34 @@ def test_energy_change_matches_the_potential_and_its_taylor_expansion():
     K = system.tangent(q)
     taylor = g @ small + 0.5 * small @ (K @ small)
     assert energy_change(system, q, q + small) == pytest.approx(taylor, rel=1e-5)
+
+
+def test_old_factor_is_tried_only_while_it_tends_to_work():
+    from scipy.sparse import diags
+
+    from shellform.solvers.relaxation import _SPDSolve
+
+    rng = np.random.default_rng(3)
+    n = 200
+    main = 4.0 + rng.random(n)
+    A = diags([-np.ones(n - 1), main, -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    B = diags([-np.ones(n - 1), main * 10.0 ** rng.uniform(0, 4, n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    b = rng.standard_normal(n)
+    solver = _SPDSolve("cholesky", n, cg_max=2)
+
+    def attempted(M):
+        before = solver.cg_iterations
+        x = solver.solve(M, b, 1e-10)
+        assert np.linalg.norm(M @ x - b) <= 1e-8 * np.linalg.norm(b)  # right in every path
+        return solver.cg_iterations > before
+
+    assert not attempted(A)  # nothing to try yet
+    # A's factor does not solve B in two iterations, nor B's A: the rate drops below one half
+    assert attempted(B) and attempted(A)
+    assert solver.success_rate < 0.5
+    # so the next three solves refactorise at once, and the fourth tries again
+    assert [attempted(M) for M in (B, A, B, B)] == [False, False, False, True]
+    # the same matrix again: the attempt converges and the rate recovers
+    for _ in range(3):
+        assert attempted(B)
+    assert solver.success_rate > 0.5 and solver.factorizations == 6

@@ -448,6 +448,13 @@ class _SPDSolve:
     factorisation costs in preconditioned iterations (between 5 and 60), so
     a failed attempt never costs more than half a factorisation; when a
     factorisation costs fewer than six solves, every step refactorises.
+    An attempt saves at least half a factorisation when it converges and
+    loses about half of one when it does not, so it pays only while attempts
+    converge more often than not. A running estimate of that rate (each
+    attempt weighs 30 %) decides: below one half the old factor is not tried,
+    except on every fourth solve, which keeps the estimate current. On a
+    316 x 316 net 120 of 164 attempts failed, each after five iterations
+    costing 0.35 s beside a 0.8 s factorisation.
 
     ``"cholesky"`` (what ``"auto"`` means) is CHOLMOD's supernodal Cholesky
     (:class:`~shellform.solvers.linear.CholeskyFactor`) with its analysis
@@ -498,6 +505,8 @@ class _SPDSolve:
         self.cg_iterations = 0
         self._t_factor = None
         self._t_iteration = None
+        self.success_rate = 1.0  # running estimate that an attempt with the old factor converges
+        self._passed = 0  # solves since the last attempt
 
     @property
     def iteration_budget(self) -> int:
@@ -508,6 +517,16 @@ class _SPDSolve:
         budget = 0.5 * self._t_factor / self._t_iteration
         # a factorisation worth fewer than six solves is cheaper than a likely failed attempt
         return 0 if budget < 3 else int(min(max(budget, 5), 60))
+
+    def _worth_an_attempt(self) -> bool:
+        """Whether to try CG with the kept factor before refactorising."""
+        if not (self.reuse and self._ready and self.iteration_budget > 0):
+            return False
+        if self.success_rate >= 0.5 or self._passed >= 3:
+            self._passed = 0
+            return True
+        self._passed += 1
+        return False
 
     def _factorize(self, A: sp.csr_matrix) -> None:
         self._ready = False
@@ -577,10 +596,11 @@ class _SPDSolve:
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray:
         """Solve ``A x = b`` to relative residual ``rtol`` (or exactly after a refactorisation)."""
-        if self.reuse and self._ready and self.iteration_budget > 0:
+        if self._worth_an_attempt():
             t0 = time.perf_counter()
             x, ok, its = _pcg(A, b, self._precondition, rtol, self.iteration_budget)
             self.cg_iterations += its
+            self.success_rate = 0.7 * self.success_rate + 0.3 * float(ok)
             if its:
                 self._t_iteration = (time.perf_counter() - t0) / its
             if ok:
