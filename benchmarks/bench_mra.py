@@ -163,7 +163,8 @@ def main():
     for path in args.add_rows:
         added = json.loads(Path(path).read_text())["rows"]
         rows.extend(added)
-        fit_nodes |= {r["nodes"] for r in added if not r.get("explicit_reference_only")}
+        # the sizes of the fit are those of the fast rows; an explicit run's size is a reference only
+        fit_nodes |= {r["nodes"] for r in added if r["variant"] == "fast" and not r.get("explicit_reference_only")}
     fit = sorted((r for r in rows if r["variant"] == "fast" and r["converged"] and r["nodes"] in fit_nodes),
                  key=lambda r: r["nodes"])
     exps = None
