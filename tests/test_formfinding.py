@@ -255,8 +255,10 @@ def test_ropes_between_sliding_supports_stay_in_the_net():
     # the 24 rim edges of the 8 x 4 grid join two suspension points
     assert len(held.info["held_ropes"]) == 24 and len(held.rope_edges) == len(grid.edges) - 24
     assert len(sliding.rope_edges) == len(grid.edges) and len(sliding.info["held_ropes"]) == 0
-    # the left-out ropes' mass stays in the net's weight
+    # the left-out ropes' mass stays in the net's weight, and is counted once in the default EA
     assert held.total_weight() == pytest.approx(sliding.total_weight())
+    assert held.EA == pytest.approx(1e4 * held.total_weight())
+    assert sliding.EA == pytest.approx(1e4 * sliding.total_weight())
     with pytest.raises(ModelError, match="every rope joins two suspension points"):
         hanging_net(grid, {"groups": ["boundary"], "positions": [[i, j] for i in range(9) for j in range(5)]})
 

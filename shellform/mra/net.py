@@ -212,7 +212,8 @@ def hanging_net(
     if loads is not None:
         s.add_load(np.arange(grid.n_nodes), np.asarray(loads, dtype=float), scaled=False)
     if EA is None:
-        weight = float((point_mass.sum() + mass_per_length * rest.sum()) * np.linalg.norm(gravity))
+        # the held ropes' mass is in point_mass by now
+        weight = float((point_mass.sum() + mass_per_length * rest[~held].sum()) * np.linalg.norm(gravity))
         if loads is not None:
             weight += float(np.linalg.norm(np.asarray(loads, dtype=float), axis=-1).sum())
         if weight <= 0:
