@@ -214,7 +214,7 @@ def test_case_solver_start_and_linear_solver_keys(tmp_path, start, expected):
 
 
 def test_ropes_between_suspension_points_are_left_out(tmp_path):
-    # an arched frame (2 m rise over 8 m) would stretch the ropes along it by 11 %: they belong
+    # an arched frame (2 m rise over 8 m) would stretch the ropes along it by 9 %: they belong
     # to the support, so they are left out and only their weight remains, hung on the frame
     params = {
         "geometry": {"type": "rectangle", "length_x": 8.0, "length_y": 4.0, "n_i": 8, "n_j": 4},
