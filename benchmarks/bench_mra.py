@@ -9,6 +9,9 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 * the fast scheme (implicit pseudo-transient steps, default options: start
   from the force-density shape, slack-rope active set, CHOLMOD supernodal
   Cholesky);
+* the same scheme started from the shape in balance with the force densities
+  of a hanging net with a third of the nodes per side (``--coarse-sizes``;
+  the coarse relaxation is included in the wall time);
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -22,7 +25,7 @@ own; runs go one after another. Prints a table and writes
 ``benchmarks/results/bench_mra.json`` and ``.md``.
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--before-sizes 32 100] [--ldl-sizes 32 100]
-      [--plain-sizes 32 100] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
+      [--plain-sizes 32 100] [--coarse-sizes 32 100 316] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ VARIANTS = {
     "ldl": {"scheme": "implicit", "linear_solver": "ldl"},
     "plain": {"scheme": "implicit", "slack_active_set": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
+    "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
     "kinetic": {"scheme": "kinetic"},
     "rk4": {"scheme": "rk4"},
 }
@@ -81,13 +85,16 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
     build = time.perf_counter() - t0
     c0 = time.process_time()
     cb = _progress(n, variant) if verbose else None
-    res = form_find(net, max_wall_time=wall, callback=cb, **VARIANTS[variant])
+    t1 = time.perf_counter()
+    q0 = _coarse_start(net, n) if variant == "coarse" else None
+    prep = time.perf_counter() - t1
+    res = form_find(net, q0, max_wall_time=wall, callback=cb, **VARIANTS[variant])
     r = res.relaxation
     row = {
         "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
         "iterations": int(r.iterations), "factorizations": int(r.factorizations),
         "cg_iterations": int(r.linear_iterations), "residual_evaluations": int(r.residual_evaluations),
-        "rejected_steps": int(r.rejected_steps), "wall_time_s": float(r.wall_time_s),
+        "rejected_steps": int(r.rejected_steps), "wall_time_s": float(r.wall_time_s) + prep, "preparation_s": prep,
         "cpu_time_s": time.process_time() - c0, "build_s": build,
         "peak_memory_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "max_velocity": float(r.max_velocity), "max_acceleration": float(r.max_acceleration),
@@ -95,6 +102,16 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
         "n_slack": int(res.slack.sum()), "rise": float(res.rise), "message": r.message,
     }
     out_q.put((row, res.positions))
+
+
+def _coarse_start(net, n: int):
+    """The shape in balance with the force densities of a net with a third of the nodes per side."""
+    from shellform.mra import form_find
+    from shellform.mra.start import transferred_force_densities
+    from shellform.solvers.relaxation import force_density_shape
+
+    coarse = form_find(make_net(max(round((n - 1) / 3), 2) + 1))
+    return force_density_shape(net.system(), transferred_force_densities(coarse, net))
 
 
 def run(n: int, variant: str, wall: float | None = None, verbose: bool = False):
@@ -118,6 +135,7 @@ def main():
     ap.add_argument("--before-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--ldl-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
     ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
@@ -142,7 +160,8 @@ def main():
         row, pos = run(n, "fast", args.wall, args.verbose)
         fast[n] = (row, pos)
         report(row)
-        for variant, chosen in (("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
+        for variant, chosen in (("coarse", args.coarse_sizes), ("plain", args.plain_sizes), ("ldl", args.ldl_sizes),
+                                ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)
                 row_b["shape_difference"] = float(np.abs(pos_b - pos).max())

@@ -431,12 +431,14 @@ START_SHAPE = Table(
     fill_defaults=True,
     doc="Start shape of the form finding. Also read from a top-level [start] table.",
     keys={
-        "type": Key("str", "The flat planform, a B-spline dish, or a B-spline fitted to a coarser hanging net.",
-                    default="flat", choices=("flat", "nurbs", "coarse_nurbs")),
+        "type": Key("str", "The flat planform, a B-spline dish, a B-spline fitted to a coarser hanging net, or "
+                    "the shape in balance with the force densities of a coarser hanging net.",
+                    default="flat", choices=("flat", "nurbs", "coarse_nurbs", "coarse_force_density")),
         "depth": Key("float", "nurbs: depth of the dish.", default=None, unit="m"),
         "control_heights": Key("grid", "nurbs: control heights over the planform box (instead of depth).",
                                default=None, unit="m"),
-        "coarsening": Key("int", "coarse_nurbs: the coarse net has this many times fewer quads per side.",
+        "coarsening": Key("int", "coarse_nurbs, coarse_force_density: the coarse net has this many times fewer "
+                          "quads per side.",
                           default=4, minimum=1),
         "n_ctrl": Key("int", "coarse_nurbs: control points per direction of the fitted surface.", default=6,
                       minimum=2),

@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from shellform import Structure, build_system
+from shellform import ModelError, Structure, build_system
 from shellform.solvers.relaxation import force_density_start, nested_dissection, relax
 
 from test_relaxation import chain, small_net
@@ -106,3 +106,23 @@ def test_slack_active_set_reaches_the_same_shape():
     slack = [e.is_slack(b.q) for e in system.effects if e.name == "rope"][0]
     assert slack.any() and not slack.all()
     assert np.max(np.abs(a.q - b.q)) < 1e-8
+
+
+def test_force_density_shape_balances_the_load_with_the_given_densities():
+    from shellform.solvers.relaxation import force_density_shape
+
+    system = small_net(n=7, boundary=True)
+    rope = system.effects[0]
+    rng = np.random.default_rng(5)
+    density = rng.uniform(50.0, 150.0, len(rope.L))
+    x = force_density_shape(system, density).reshape(-1, 3)
+    # at every free node the members pull with q (x_j - x_i) against the load
+    pull = density[:, None] * (x[rope.conn[:, 1]] - x[rope.conn[:, 0]])
+    force = system.external_force().reshape(-1, 3).copy()
+    np.add.at(force, rope.conn[:, 0], pull)
+    np.add.at(force, rope.conn[:, 1], -pull)
+    free = force.ravel()[system.free]
+    assert np.abs(free).max() <= 1e-9 * np.abs(system.external_force()).max()
+    assert np.all(x.ravel()[system.constrained] == system.q_ref[system.constrained])
+    with pytest.raises(ModelError, match="finite, non-negative force densities"):
+        force_density_shape(system, -density)

@@ -28,7 +28,8 @@ from .formfind import STRAIN_LIMIT, FormFindingResult, HypostaticWarning, Overst
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
-from .start import fit_height_field, surface_start
+from ..solvers.relaxation import force_density_shape
+from .start import fit_height_field, surface_start, transferred_force_densities
 
 DEFAULTS = {
     "name": "mra",
@@ -143,25 +144,32 @@ def start_state(p: dict, net: HangingNet, options: dict) -> tuple[np.ndarray | N
             hf = dish(xr, yr, float(depth))
         q0 = surface_start(net, hf)
         return q0, {"type": "nurbs", "preparation_s": time.perf_counter() - t0}
-    if kind == "coarse_nurbs":
-        # the preliminary phase: hang a coarser version of the same net, fit a
-        # B-spline height field to it, start the full net on that surface
-        coarse_p = _coarsened(p, int(st["coarsening"]))
-        coarse_net = build_net(coarse_p)
+    if kind in ("coarse_nurbs", "coarse_force_density"):
+        # the preliminary phase: hang a coarser version of the same net
+        coarse_net = build_net(_coarsened(p, int(st["coarsening"])))
         with warnings.catch_warnings():
             # a coarse net often has too few free nodes for Eqs. (11)-(12); it only shapes the
             # start, and the full net reports its own stretched ropes
             warnings.simplefilter("ignore", HypostaticWarning)
             warnings.simplefilter("ignore", OverstretchWarning)
             coarse = form_find(coarse_net, **{**options, "callback": None})
-        pts = coarse.positions.copy()
-        pts[:, 2] -= coarse_net.structure.nodes[:, 2]
-        hf = fit_height_field(pts, xr, yr, n_ctrl=int(st["n_ctrl"]))
-        q0 = surface_start(net, hf)
-        return q0, {"type": "coarse_nurbs", "preparation_s": time.perf_counter() - t0,
+        if kind == "coarse_nurbs":
+            # a B-spline height field fitted to the coarse net carries the full net's nodes
+            pts = coarse.positions.copy()
+            pts[:, 2] -= coarse_net.structure.nodes[:, 2]
+            q0 = surface_start(net, fit_height_field(pts, xr, yr, n_ctrl=int(st["n_ctrl"])))
+        else:
+            # the coarse ropes' force densities, carried over to the full net's ropes: its shape in
+            # balance with them has ropes close to their rest lengths
+            q0 = force_density_shape(net.system(), transferred_force_densities(coarse, net))
+            if q0 is None:
+                raise SceneError("start.type", "the force densities of the coarse net do not hold every "
+                                 "free node of the full net; use 'coarse_nurbs' or 'flat'")
+        return q0, {"type": kind, "preparation_s": time.perf_counter() - t0,
                     "coarse_iterations": int(coarse.relaxation.iterations),
                     "coarse_converged": bool(coarse.converged), "coarse_nodes": int(coarse_net.structure.n_nodes)}
-    raise SceneError("start.type", f"expected 'flat', 'nurbs' or 'coarse_nurbs', got {kind!r}")
+    raise SceneError("start.type",
+                     f"expected 'flat', 'nurbs', 'coarse_nurbs' or 'coarse_force_density', got {kind!r}")
 
 
 def _coarsened(p: dict, factor: int) -> dict:
@@ -183,7 +191,7 @@ def _coarsened(p: dict, factor: int) -> dict:
     if "frames" in sup:
         sup["frames"] = [{**f, "from": scale([f["from"]])[0], "to": scale([f["to"]])[0]} for f in sup["frames"]]
     if "nodes" in sup:
-        raise SceneError("supports.nodes", "a coarse_nurbs start needs supports by groups, positions or frames")
+        raise SceneError("supports.nodes", "a coarse start needs supports by groups, positions or frames")
     return {**p, "geometry": g, "supports": sup}
 
 

@@ -1,4 +1,4 @@
-"""Start states for form finding: flat, or on a B-spline surface close to the final shape.
+"""Start states for form finding: flat, on a B-spline surface, or from a coarser hanging net.
 
 The MRA paper starts large nets from a NURBS surface built in a preliminary
 phase, near the hanging shape, instead of from the flat planform, and reports
@@ -6,6 +6,11 @@ that the relaxation then costs much less. :func:`surface_start` places the
 free nodes of a net on a height-field B-spline (planform ``x, y`` kept,
 ``z`` from the surface); :func:`fit_height_field` builds such a surface by
 least squares from scattered points (for example a coarse hanging net).
+:func:`transferred_force_densities` takes the force densities of a coarser
+hanging net instead: the shape in balance with them
+(:func:`~shellform.solvers.relaxation.force_density_shape`) has ropes close
+to their rest lengths, where a surface through the coarse nodes stretches
+them.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..geometry.bspline import HeightField, basis_functions, height_field
+from .formfind import FormFindingResult
 from .net import HangingNet
 
 
@@ -65,3 +71,82 @@ def fit_height_field(points, x_range, y_range, n_ctrl=(6, 6), degree: int = 3,
     z = np.linalg.solve(lhs, A.T @ p[:, 2])
     srf.control_points[..., 2] = z.reshape(nu, nv)
     return hf
+
+
+def transferred_force_densities(coarse: FormFindingResult, net: HangingNet) -> np.ndarray:
+    """Force densities for the ropes of ``net`` from a hanging coarser net on the same kind of grid.
+
+    The force densities ``N / l`` of the coarse ropes form one field per
+    family of grid lines, known at the rope midpoints in the structured
+    coordinates ``(i / (n_i - 1), j / (n_j - 1))`` that both grids share.
+    Every rope of ``net`` takes the bilinear interpolation of its family's
+    field at its own midpoint (the field's edge values beyond the coarse
+    midpoints); coarse grid edges that are not ropes (between two supports)
+    are left out of the interpolation. A rope's tension grows with the load
+    per area times the rope spacing and its length with the spacing, so the
+    force density scales with the load per area: the field is multiplied by
+    the ratio of the two nets' weights. Ropes slack in the coarse net would
+    get no force density and leave nodes unheld, so every rope gets at least
+    1 % of the median.
+
+    Returns
+    -------
+    ndarray, shape (len(net.rope_edges),)
+        Force densities [N/m], in the order of ``net.rope_edges``.
+    """
+    cnet = coarse.net
+    density = np.where(coarse.length > 0, coarse.tension / np.maximum(coarse.length, 1e-300), 0.0)
+    c_ij, f_mid = _rope_lattice(cnet), _structured_midpoints(net)
+    out = np.zeros(len(net.rope_edges))
+    ni, nj = cnet.grid.shape
+    for fam in (0, 1):
+        into = net.family == fam
+        if not into.any():
+            continue
+        have = cnet.family == fam
+        if not have.any():
+            raise ModelError(f"force-density transfer: the coarse net has no ropes of family {fam} to take from")
+        # the lattice of this family's rope midpoints: half-integer positions along the ropes
+        shape = (ni - 1, nj) if fam == 0 else (ni, nj - 1)
+        u = (np.arange(shape[0]) + (0.5 if fam == 0 else 0.0)) / (ni - 1)
+        v = (np.arange(shape[1]) + (0.5 if fam == 1 else 0.0)) / (nj - 1)
+        value, weight = np.zeros(shape), np.zeros(shape)
+        value[c_ij[have, 0], c_ij[have, 1]] = density[have]
+        weight[c_ij[have, 0], c_ij[have, 1]] = 1.0
+        # interpolating the values and the presence alike skips the lattice points without a rope
+        num = _bilinear(u, v, value, f_mid[into])
+        den = _bilinear(u, v, weight, f_mid[into])
+        out[into] = np.where(den > 1e-12, num / np.maximum(den, 1e-12), float(np.median(density[have])))
+    out = np.maximum(out, 0.01 * float(np.median(out[out > 0]))) if np.any(out > 0) else out
+    return out * net.total_weight() / cnet.total_weight()
+
+
+def _structured_midpoints(net: HangingNet) -> np.ndarray:
+    """Rope midpoints in the structured coordinates ``(i / (n_i - 1), j / (n_j - 1))``."""
+    g = net.grid
+    uv = g.ij / (np.asarray(g.shape, dtype=float) - 1.0)
+    e = net.rope_edges
+    return 0.5 * (uv[e[:, 0]] + uv[e[:, 1]])
+
+
+def _rope_lattice(net: HangingNet) -> np.ndarray:
+    """Lattice index of every rope: the smaller structured position of its two ends."""
+    ij = net.grid.ij[net.rope_edges]
+    return ij.min(axis=1)
+
+
+def _bilinear(u: np.ndarray, v: np.ndarray, values: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation on the lattice ``u x v`` (ascending), clamped to its edges."""
+    def locate(axis, x):
+        if len(axis) == 1:
+            return np.zeros(len(x), dtype=np.int64), np.zeros(len(x))
+        x = np.clip(x, axis[0], axis[-1])
+        k = np.clip(np.searchsorted(axis, x, side="right") - 1, 0, len(axis) - 2)
+        return k, (x - axis[k]) / (axis[k + 1] - axis[k])
+
+    a, s = locate(u, points[:, 0])
+    b, t = locate(v, points[:, 1])
+    a1 = np.minimum(a + 1, len(u) - 1)
+    b1 = np.minimum(b + 1, len(v) - 1)
+    return ((1 - s) * (1 - t) * values[a, b] + s * (1 - t) * values[a1, b]
+            + (1 - s) * t * values[a, b1] + s * t * values[a1, b1])

@@ -354,49 +354,12 @@ def force_density_start(system, lam: float = 1.0, stiffness_scale: float = 1.0, 
     do not hold every free node (the Laplacian is singular) or the net has no
     load; the caller then starts from the reference state.
     """
-    axial = _axial_effects(system)
-    if not axial or len(axial) != len([e for e in system.effects if not e.is_external]):
+    parts = _force_density_parts(system, None, lam, base)
+    if parts is None:
         return None
-    n = system.structure.n_nodes
-    conn = np.concatenate([e.conn for e in axial])
-    L = np.concatenate([e.L for e in axial])
-    EA = stiffness_scale * np.concatenate([np.broadcast_to(e.EA, e.L.shape) for e in axial])
-    f = system.external_force(lam).reshape(n, 3)
-    q = (system.q_ref if base is None else np.asarray(base, dtype=float)).copy()
-    X = q[: 3 * n].reshape(n, 3).copy()
-    if not np.any(f):
-        return None
-    G = sp.coo_matrix((np.ones(len(conn)), (conn[:, 0], conn[:, 1])), shape=(n, n))
-    G = (G + G.T).tocsr()
-    lap = (sp.diags(np.asarray(G.sum(axis=1)).ravel()) - G).tocsr()
-    free = np.zeros(3 * n, dtype=bool)
-    free[system.free] = True
-    free = free.reshape(n, 3)
-    Xb, Xf = X.copy(), np.zeros_like(X)
-    ncomp, labels = connected_components(G, directed=False)
-    patterns = {}
-    for c in range(3):
-        patterns.setdefault(free[:, c].tobytes(), []).append(c)
-    for key, comps in patterns.items():
-        fi = np.flatnonzero(free[:, comps[0]])
-        ci = np.flatnonzero(~free[:, comps[0]])
-        if fi.size == 0:
-            continue
-        A = lap[fi][:, fi]
-        # a free node with no path to a constrained one makes A singular: no shape to start from
-        held = np.zeros(ncomp, dtype=bool)
-        held[labels[ci]] = True
-        if ci.size == 0 or not np.all(held[labels[fi]]):
-            return None
-        rhs_b = -(lap[fi][:, ci] @ X[np.ix_(ci, comps)])
-        try:
-            sol = _scalar_solver(A)(np.column_stack([rhs_b, f[np.ix_(fi, comps)]]))
-        except RuntimeError:
-            return None
-        Xb[np.ix_(fi, comps)] = sol[:, : len(comps)]
-        Xf[np.ix_(fi, comps)] = sol[:, len(comps):]
-    if not (np.all(np.isfinite(Xb)) and np.all(np.isfinite(Xf))):
-        return None
+    q, Xb, Xf, conn, L, EA = parts
+    EA = stiffness_scale * EA
+    f = system.external_force(lam)
 
     def lengths(cd):
         Y = Xb + Xf / cd
@@ -430,8 +393,88 @@ def force_density_start(system, lam: float = 1.0, stiffness_scale: float = 1.0, 
             break
     cd = np.exp(0.5 * (lo + hi))
     out = q.copy()
-    out[: 3 * n] = (Xb + Xf / cd).ravel()
+    out[: Xb.size] = (Xb + Xf / cd).ravel()
     return out
+
+
+def force_density_shape(system, density, lam: float = 1.0, base=None) -> np.ndarray | None:
+    """The shape in which the axial members with force densities ``density`` balance the load.
+
+    One weighted-Laplacian solve per group of coordinates held alike: with
+    the force density ``q_e = N_e / l_e`` given for every member, nodal
+    equilibrium is linear in the positions. ``density`` runs over the axial
+    members in the order of the System's effects. Returns None where
+    :func:`force_density_start` would (a free node not held by members with
+    positive density, or no load).
+    """
+    density = np.asarray(density, dtype=float)
+    n_members = sum(len(e.L) for e in _axial_effects(system))
+    if density.shape != (n_members,) or not np.all(np.isfinite(density)) or np.any(density < 0):
+        raise ModelError(f"force-density shape: expected {n_members} finite, non-negative force densities, "
+                         f"got shape {density.shape}")
+    parts = _force_density_parts(system, density, lam, base)
+    if parts is None:
+        return None
+    q, Xb, Xf = parts[:3]
+    out = q.copy()
+    out[: Xb.size] = (Xb + Xf).ravel()
+    return out
+
+
+def _force_density_parts(system, weights, lam, base):
+    """``(q, X_b, X_f, conn, L, EA)``: a weighted-Laplacian solve of the axial members.
+
+    ``X_b`` is the supports' harmonic extension and ``X_f`` the load's response
+    for member weights ``weights`` (all ones when None): the shape with force
+    densities ``c * weights`` is ``X_b + X_f / c``.
+    """
+    axial = _axial_effects(system)
+    if not axial or len(axial) != len([e for e in system.effects if not e.is_external]):
+        return None
+    n = system.structure.n_nodes
+    conn = np.concatenate([e.conn for e in axial])
+    L = np.concatenate([e.L for e in axial])
+    EA = np.concatenate([np.broadcast_to(e.EA, e.L.shape) for e in axial])
+    w = np.ones(len(conn)) if weights is None else weights
+    f = system.external_force(lam).reshape(n, 3)
+    q = (system.q_ref if base is None else np.asarray(base, dtype=float)).copy()
+    X = q[: 3 * n].reshape(n, 3).copy()
+    if not np.any(f):
+        return None
+    # a member of zero weight holds nothing: leave it out of the graph
+    held = w > 0
+    G = sp.coo_matrix((w[held], (conn[held, 0], conn[held, 1])), shape=(n, n))
+    G = (G + G.T).tocsr()
+    lap = (sp.diags(np.asarray(G.sum(axis=1)).ravel()) - G).tocsr()
+    free = np.zeros(3 * n, dtype=bool)
+    free[system.free] = True
+    free = free.reshape(n, 3)
+    Xb, Xf = X.copy(), np.zeros_like(X)
+    ncomp, labels = connected_components(G, directed=False)
+    patterns = {}
+    for c in range(3):
+        patterns.setdefault(free[:, c].tobytes(), []).append(c)
+    for key, comps in patterns.items():
+        fi = np.flatnonzero(free[:, comps[0]])
+        ci = np.flatnonzero(~free[:, comps[0]])
+        if fi.size == 0:
+            continue
+        A = lap[fi][:, fi]
+        # a free node with no path to a constrained one makes A singular: no shape to start from
+        connected = np.zeros(ncomp, dtype=bool)
+        connected[labels[ci]] = True
+        if ci.size == 0 or not np.all(connected[labels[fi]]):
+            return None
+        rhs_b = -(lap[fi][:, ci] @ X[np.ix_(ci, comps)])
+        try:
+            sol = _scalar_solver(A)(np.column_stack([rhs_b, f[np.ix_(fi, comps)]]))
+        except RuntimeError:
+            return None
+        Xb[np.ix_(fi, comps)] = sol[:, : len(comps)]
+        Xf[np.ix_(fi, comps)] = sol[:, len(comps):]
+    if not (np.all(np.isfinite(Xb)) and np.all(np.isfinite(Xf))):
+        return None
+    return q, Xb, Xf, conn, L, EA
 
 
 # ---------------------------------------------------------------------------
