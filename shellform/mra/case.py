@@ -24,11 +24,11 @@ from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
 from ..io.summary import write_json
+from ..solvers.relaxation import force_density_shape
 from .formfind import STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, form_find
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
-from ..solvers.relaxation import force_density_shape
 from .start import fit_height_field, surface_start, transferred_force_densities
 
 DEFAULTS = {
