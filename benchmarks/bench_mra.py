@@ -107,11 +107,9 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
 def _coarse_start(net, n: int):
     """The shape in balance with the force densities of a net with a third of the nodes per side."""
     from shellform.mra import form_find
-    from shellform.mra.start import transferred_force_densities
-    from shellform.solvers.relaxation import force_density_shape
+    from shellform.mra.start import coarse_force_density_start
 
-    coarse = form_find(make_net(max(round((n - 1) / 3), 2) + 1))
-    return force_density_shape(net.system(), transferred_force_densities(coarse, net))
+    return coarse_force_density_start(form_find(make_net(max(round((n - 1) / 3), 2) + 1)), net)
 
 
 def run(n: int, variant: str, wall: float | None = None, verbose: bool = False):

@@ -24,12 +24,11 @@ from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
 from ..io.summary import write_json
-from ..solvers.relaxation import force_density_shape
 from .formfind import STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, form_find
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
-from .start import fit_height_field, surface_start, transferred_force_densities
+from .start import coarse_force_density_start, fit_height_field, surface_start
 
 DEFAULTS = {
     "name": "mra",
@@ -161,7 +160,7 @@ def start_state(p: dict, net: HangingNet, options: dict) -> tuple[np.ndarray | N
         else:
             # the coarse ropes' force densities, carried over to the full net's ropes: its shape in
             # balance with them has ropes close to their rest lengths
-            q0 = force_density_shape(net.system(), transferred_force_densities(coarse, net))
+            q0 = coarse_force_density_start(coarse, net)
             if q0 is None:
                 raise SceneError("start.type", "the force densities of the coarse net do not hold every "
                                  "free node of the full net; use 'coarse_nurbs' or 'flat'")

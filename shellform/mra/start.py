@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..geometry.bspline import HeightField, basis_functions, height_field
+from ..solvers.relaxation import force_density_shape
 from .formfind import FormFindingResult
 from .net import HangingNet
 
@@ -119,6 +120,17 @@ def transferred_force_densities(coarse: FormFindingResult, net: HangingNet) -> n
         out[into] = np.where(den > 1e-12, num / np.maximum(den, 1e-12), float(np.median(density[have])))
     out = np.maximum(out, 0.01 * float(np.median(out[out > 0]))) if np.any(out > 0) else out
     return out * net.total_weight() / cnet.total_weight()
+
+
+def coarse_force_density_start(coarse: FormFindingResult, net: HangingNet) -> np.ndarray | None:
+    """Start state of ``net``: the shape in balance with the force densities of the hanging ``coarse`` net.
+
+    :func:`transferred_force_densities` followed by
+    :func:`~shellform.solvers.relaxation.force_density_shape` (the net's ropes
+    are its System's axial members, in the same order). None when those
+    force densities do not hold every free node.
+    """
+    return force_density_shape(net.system(), transferred_force_densities(coarse, net))
 
 
 def _structured_midpoints(net: HangingNet) -> np.ndarray:
