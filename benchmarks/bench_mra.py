@@ -12,6 +12,10 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 * the same scheme started from the shape in balance with the force densities
   of a hanging net with a third of the nodes per side (``--coarse-sizes``;
   the coarse relaxation is included in the wall time);
+* the same scheme with ``form_find(start="coarse_net")`` (``--coarse-net-sizes``):
+  the coarse net is built from the fine one (:func:`shellform.mra.coarsen.coarsened_net`,
+  every third grid line, the full weight) instead of from the benchmark's
+  parameters;
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -25,7 +29,7 @@ own; runs go one after another. Prints a table and writes
 ``benchmarks/results/bench_mra.json`` and ``.md``.
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--before-sizes 32 100] [--ldl-sizes 32 100]
-      [--plain-sizes 32 100] [--coarse-sizes 32 100 316] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
+      [--plain-sizes 32 100] [--coarse-sizes 32 100 316] [--coarse-net-sizes 32 100 316] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ VARIANTS = {
     "plain": {"scheme": "implicit", "slack_active_set": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
+    "coarse_net": {"scheme": "implicit", "start": "coarse_net"},  # form_find's own coarse net, from the net itself
     "kinetic": {"scheme": "kinetic"},
     "rk4": {"scheme": "rk4"},
 }
@@ -134,6 +139,7 @@ def main():
     ap.add_argument("--ldl-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
+    ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
     ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
@@ -158,8 +164,8 @@ def main():
         row, pos = run(n, "fast", args.wall, args.verbose)
         fast[n] = (row, pos)
         report(row)
-        for variant, chosen in (("coarse", args.coarse_sizes), ("plain", args.plain_sizes), ("ldl", args.ldl_sizes),
-                                ("before", args.before_sizes)):
+        for variant, chosen in (("coarse", args.coarse_sizes), ("coarse_net", args.coarse_net_sizes),
+                                ("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)
                 row_b["shape_difference"] = float(np.abs(pos_b - pos).max())

@@ -320,39 +320,6 @@ def test_length_control_leaves_the_ropes_the_supports_overstretch_alone():
     assert lc.n_conforming[-1] > lc.n_conforming[0]
 
 
-def test_force_densities_carry_over_from_a_coarser_net():
-    from types import SimpleNamespace
-
-    from shellform.mra.start import transferred_force_densities
-
-    coarse_net = hanging_net(rectangle_grid(8.0, 4.0, 4, 2), SIX_POINTS, slack=0.05)
-    net = hanging_net(rectangle_grid(8.0, 4.0, 12, 6), SIX_POINTS, slack=0.05)
-
-    def field(uv, fam):  # linear in the structured coordinates, one per family
-        return (100.0 + 40.0 * uv[:, 0] - 25.0 * uv[:, 1]) * (1.0 if fam == 0 else 1.5)
-
-    def midpoints(n):
-        uv = n.grid.ij / (np.asarray(n.grid.shape) - 1.0)
-        return 0.5 * (uv[n.rope_edges[:, 0]] + uv[n.rope_edges[:, 1]])
-
-    cm = midpoints(coarse_net)
-    density = np.where(coarse_net.family == 0, field(cm, 0), field(cm, 1))
-    length = np.full(len(density), 2.0)
-    coarse = SimpleNamespace(net=coarse_net, tension=density * length, length=length)
-    q = transferred_force_densities(coarse, net)
-    ratio = net.total_weight() / coarse_net.total_weight()
-    fm = midpoints(net)
-    for fam in (0, 1):
-        sel = net.family == fam
-        # inside the coarse midpoints' lattice a linear field is interpolated exactly
-        lo, hi = cm[coarse_net.family == fam].min(axis=0), cm[coarse_net.family == fam].max(axis=0)
-        inside = sel & np.all((fm >= lo - 1e-12) & (fm <= hi + 1e-12), axis=1)
-        assert inside.sum() > 10
-        assert q[inside] == pytest.approx(ratio * field(fm[inside], fam), rel=1e-12)
-        # beyond it, the edge values of the lattice
-        assert np.all(q[sel] >= ratio * field(fm[sel], fam).min() * 0.99)
-
-
 @pytest.mark.parametrize("start", ["coarse_nurbs", "coarse_force_density"])
 def test_coarse_starts_reach_the_flat_start_shape(tmp_path, start):
     params = {

@@ -91,6 +91,49 @@ class QuadGrid:
         except KeyError:
             raise ModelError(f"grid: no node set named {name!r}; available: {sorted(self.groups)}") from None
 
+    def lattice(self, i_lines, j_lines) -> tuple[QuadGrid, np.ndarray]:
+        """The coarser grid of the nodes where the chosen grid lines cross.
+
+        Parameters
+        ----------
+        i_lines, j_lines : array_like of int
+            Increasing structured indices of the kept lines (each must hold
+            the first and the last line, so the sides stay the sides).
+
+        Returns
+        -------
+        grid : QuadGrid
+            The crossings, structured by their rank along the kept lines; its
+            edges join neighbouring crossings.
+        source : ndarray of int
+            Node ``k`` of ``grid`` is node ``source[k]`` of this grid.
+        """
+        rows = []
+        for name, lines, n in (("i", i_lines, self.shape[0]), ("j", j_lines, self.shape[1])):
+            lines = np.asarray(lines, dtype=np.int64)
+            if (lines.ndim != 1 or len(lines) < 2 or lines[0] != 0 or lines[-1] != n - 1
+                    or np.any(np.diff(lines) <= 0)):
+                raise ModelError(f"grid lattice: the {name} lines must increase from 0 to {n - 1}, "
+                                 f"got {lines.tolist()}")
+            rows.append(lines)
+        ni, nj = len(rows[0]), len(rows[1])
+        source = self.index()[np.ix_(rows[0], rows[1])]  # (ni, nj) fine node numbers
+        index = np.arange(ni * nj).reshape(ni, nj)
+        quads = np.column_stack([index[:-1, :-1].ravel(), index[1:, :-1].ravel(),
+                                 index[1:, 1:].ravel(), index[:-1, 1:].ravel()])
+        edges = np.concatenate([np.column_stack([index[:-1, :].ravel(), index[1:, :].ravel()]),
+                                np.column_stack([index[:, :-1].ravel(), index[:, 1:].ravel()])])
+        I, J = np.meshgrid(np.arange(ni), np.arange(nj), indexing="ij")
+        groups = {"south": index[:, 0].copy(), "north": index[:, -1].copy(),
+                  "west": index[0, :].copy(), "east": index[-1, :].copy(),
+                  "sw": index[[0], 0], "se": index[[-1], 0], "ne": index[[-1], -1], "nw": index[[0], -1]}
+        groups["corners"] = np.concatenate([groups[c] for c in CORNERS])
+        groups["boundary"] = np.unique(np.concatenate([groups[s] for s in SIDES]))
+        source = source.ravel()
+        grid = QuadGrid(nodes=self.nodes[source].copy(), quads=quads, edges=np.sort(edges, axis=1),
+                        ij=np.column_stack([I.ravel(), J.ravel()]), shape=(ni, nj), groups=groups)
+        return grid, source
+
 
 @contextlib.contextmanager
 def gmsh_session(name: str = "shellform"):

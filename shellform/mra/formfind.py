@@ -10,13 +10,14 @@ there depends on EA, not on the rest lengths alone.
 
 from __future__ import annotations
 
+import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import ModelError
-from ..solvers.relaxation import RelaxationResult, relax
+from ..solvers.relaxation import START_STATES, RelaxationResult, relax
 from .hypostatic import HypostaticReport, hypostatic_check
 from .net import HangingNet
 
@@ -187,21 +188,29 @@ def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: Hypos
 
 
 def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit",
-              strain_limit: float = STRAIN_LIMIT, **relax_options):
+              strain_limit: float = STRAIN_LIMIT, start: str = "auto", coarsening: int = 3, **relax_options):
     """Let the net fall into its hanging shape.
 
     Parameters
     ----------
     net : HangingNet
     q0 : ndarray, optional
-        Start state. Default: the force-density shape for the implicit
-        scheme, the planform (a flat start, as in the MRA paper) for the
-        explicit ones; ``start="reference"`` forces the planform.
+        Start state (overrides ``start``).
     scheme : {"implicit", "rk4", "kinetic"}
         Relaxation scheme (see :mod:`shellform.solvers.relaxation`).
     strain_limit : float
         Net ropes strained beyond this at rest are named in an
         :class:`OverstretchWarning` (default 1 %).
+    start : {"auto", "reference", "force_density", "coarse_net"}
+        Where to start without ``q0``: the planform (``"reference"``, a flat
+        start as in the MRA paper), the force-density shape
+        (``"force_density"``), or the shape in balance with the force
+        densities of the net's :func:`~shellform.mra.coarsen.coarsened_net`,
+        hung first (``"coarse_net"``; its time is counted in the wall time).
+        ``"auto"``: the force-density shape for the implicit scheme, the
+        planform for the explicit ones.
+    coarsening : int
+        Grid lines kept by the ``"coarse_net"`` start (every third by default).
     **relax_options
         Passed to :func:`shellform.solvers.relaxation.relax` (tolerances,
         damping, callback, ...).
@@ -221,8 +230,25 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     if report.warning:
         warnings.warn(report.warning, HypostaticWarning, stacklevel=2)
         notes.append(report.warning)
+    if start not in START_STATES + ("coarse_net",):
+        raise ModelError(f"form finding: unknown start {start!r}; expected one of {START_STATES + ('coarse_net',)}")
+    prep, coarse = 0.0, None
+    if start == "coarse_net" and q0 is None:
+        from .start import coarse_net_start  # start.py builds on this module
+
+        t0 = time.perf_counter()
+        options = {k: v for k, v in relax_options.items() if k not in ("callback", "progress_every")}
+        q0, coarse = coarse_net_start(net, coarsening, scheme=scheme, **options)
+        prep = time.perf_counter() - t0
+        if q0 is None:
+            notes.append("the coarse net's force densities do not hold every free node; "
+                         "started from the force-density shape instead")
+    if start == "coarse_net":
+        start = "auto"
     system = net.system()
-    res = relax(system, q0, scheme=scheme, **relax_options)
+    res = relax(system, q0, scheme=scheme, start=start, **relax_options)
+    if coarse is not None and q0 is not None:
+        res = replace(res, start="coarse_net", wall_time_s=res.wall_time_s + prep)
     out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
     for w in out.warnings[len(notes):]:
         warnings.warn(w, OverstretchWarning, stacklevel=2)

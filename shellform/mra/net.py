@@ -156,9 +156,10 @@ def hanging_net(
         translations of the suspension points are held.
     slack : float, (float, float) or array_like
         Slack coefficient(s): one for all ropes, one per family (``i``, ``j``),
-        or one per rope.
+        or one per grid edge (in the order of ``grid.edges``).
     EA : float or array_like, optional
-        Axial stiffness of the ropes [N]. Default ``stiffness_ratio`` times
+        Axial stiffness of the ropes [N], one for all or one per grid edge
+        (in the order of ``grid.edges``). Default ``stiffness_ratio`` times
         the net's weight, so rope strains stay around ``1 / stiffness_ratio``
         or less: nearly inextensible ropes.
     mass_per_length : float
@@ -219,7 +220,12 @@ def hanging_net(
         if weight <= 0:
             raise ModelError("ropes: the net has no weight and no load; give EA explicitly")
         EA = stiffness_ratio * weight
-    EA = np.broadcast_to(np.asarray(EA, dtype=float), (len(edges),))
+    EA = np.asarray(EA, dtype=float)
+    if EA.shape == (len(grid.edges),):
+        EA = EA[order]
+    elif EA.ndim != 0:
+        raise ModelError(f"ropes: EA must be a number or one per grid edge ({len(grid.edges)}), got shape {EA.shape}")
+    EA = np.broadcast_to(EA, (len(edges),))
     net_rope = ~held
     for fam, name in ((0, "ropes_i"), (1, "ropes_j")):
         sel = (family == fam) & net_rope
@@ -228,7 +234,8 @@ def hanging_net(
     s.fix(nodes_sup, dofs)
     return HangingNet(grid=grid, structure=s, supports=nodes_sup, rope_edges=edges[net_rope],
                       family=family[net_rope],
-                      info={"slack": sc[net_rope], "flat_length": flat_length[net_rope], "held_ropes": edges[held]})
+                      info={"slack": sc[net_rope], "flat_length": flat_length[net_rope], "held_ropes": edges[held],
+                            "support_dofs": dofs})
 
 
 def _held_ropes(edges: np.ndarray, supports: np.ndarray, dofs: str) -> np.ndarray:

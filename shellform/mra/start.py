@@ -15,12 +15,15 @@ them.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ..errors import ModelError
 from ..geometry.bspline import HeightField, basis_functions, height_field
 from ..solvers.relaxation import force_density_shape
-from .formfind import FormFindingResult
+from .coarsen import coarsened_net, structured_lines
+from .formfind import FormFindingResult, HypostaticWarning, OverstretchWarning, form_find
 from .net import HangingNet
 
 
@@ -100,6 +103,7 @@ def transferred_force_densities(coarse: FormFindingResult, net: HangingNet) -> n
     c_ij, f_mid = _rope_lattice(cnet), _structured_midpoints(net)
     out = np.zeros(len(net.rope_edges))
     ni, nj = cnet.grid.shape
+    cu, cv = structured_lines(cnet)
     for fam in (0, 1):
         into = net.family == fam
         if not into.any():
@@ -107,10 +111,10 @@ def transferred_force_densities(coarse: FormFindingResult, net: HangingNet) -> n
         have = cnet.family == fam
         if not have.any():
             raise ModelError(f"force-density transfer: the coarse net has no ropes of family {fam} to take from")
-        # the lattice of this family's rope midpoints: half-integer positions along the ropes
+        # the lattice of this family's rope midpoints: halfway between lines along the ropes
         shape = (ni - 1, nj) if fam == 0 else (ni, nj - 1)
-        u = (np.arange(shape[0]) + (0.5 if fam == 0 else 0.0)) / (ni - 1)
-        v = (np.arange(shape[1]) + (0.5 if fam == 1 else 0.0)) / (nj - 1)
+        u = 0.5 * (cu[:-1] + cu[1:]) if fam == 0 else cu
+        v = 0.5 * (cv[:-1] + cv[1:]) if fam == 1 else cv
         value, weight = np.zeros(shape), np.zeros(shape)
         value[c_ij[have, 0], c_ij[have, 1]] = density[have]
         weight[c_ij[have, 0], c_ij[have, 1]] = 1.0
@@ -133,10 +137,38 @@ def coarse_force_density_start(coarse: FormFindingResult, net: HangingNet) -> np
     return force_density_shape(net.system(), transferred_force_densities(coarse, net))
 
 
+def coarse_net_start(net: HangingNet, factor: int = 3, **relax_options) -> tuple[np.ndarray | None, FormFindingResult]:
+    """Hang the :func:`~shellform.mra.coarsen.coarsened_net` of ``net`` and start ``net`` from its force densities.
+
+    Parameters
+    ----------
+    net : HangingNet
+    factor : int
+        Coarsening factor (grid lines kept).
+    **relax_options
+        Passed to :func:`~shellform.mra.formfind.form_find` for the coarse net.
+
+    Returns
+    -------
+    q0 : ndarray or None
+        :func:`coarse_force_density_start` (None when the transferred force
+        densities do not hold every free node).
+    coarse : FormFindingResult
+        The coarse net at rest.
+    """
+    cnet = coarsened_net(net, factor)
+    with warnings.catch_warnings():
+        # a coarse net may have too few free nodes for Eqs. (11)-(12); it only shapes the start
+        warnings.simplefilter("ignore", HypostaticWarning)
+        warnings.simplefilter("ignore", OverstretchWarning)
+        coarse = form_find(cnet, **relax_options)
+    return coarse_force_density_start(coarse, net), coarse
+
+
 def _structured_midpoints(net: HangingNet) -> np.ndarray:
-    """Rope midpoints in the structured coordinates ``(i / (n_i - 1), j / (n_j - 1))``."""
-    g = net.grid
-    uv = g.ij / (np.asarray(g.shape, dtype=float) - 1.0)
+    """Rope midpoints in the net's structured coordinates (:func:`~shellform.mra.coarsen.structured_lines`)."""
+    u, v = structured_lines(net)
+    uv = np.column_stack([u[net.grid.ij[:, 0]], v[net.grid.ij[:, 1]]])
     e = net.rope_edges
     return 0.5 * (uv[e[:, 0]] + uv[e[:, 1]])
 

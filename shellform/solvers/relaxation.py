@@ -133,7 +133,9 @@ class RelaxationResult:
         ``iteration``, ``max_velocity``, ``max_acceleration``,
         ``residual_norm`` sampled every ``progress_every`` iterations.
     start : str
-        ``"given"`` (``q0`` was passed), ``"reference"`` or ``"force_density"``.
+        ``"given"`` (``q0`` was passed), ``"reference"`` or ``"force_density"``;
+        :func:`~shellform.mra.form_find` reports ``"coarse_net"`` for its start
+        from a coarser net (whose relaxation time is then in ``wall_time_s``).
     """
 
     q: np.ndarray

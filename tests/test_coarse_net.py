@@ -1,0 +1,148 @@
+"""Coarser versions of a hanging net: the lattice of kept lines, its ropes and load, and the start it gives."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from shellform import ModelError
+from shellform.geometry import rectangle_grid
+from shellform.mra import form_find, hanging_net
+from shellform.mra.coarsen import coarsened_net, structured_lines
+from shellform.mra.start import transferred_force_densities
+
+SIX_POINTS = {"positions": [[0, 0], [-1, 0], [0, -1], [-1, -1], [0, 2], [-1, 2]]}
+
+
+def test_lattice_keeps_the_crossings_of_the_chosen_lines():
+    fine = rectangle_grid(6.0, 4.0, 6, 4)
+    grid, source = fine.lattice([0, 3, 6], [0, 1, 4])
+    assert grid.shape == (3, 3) and grid.n_nodes == 9
+    np.testing.assert_array_equal(fine.ij[source], [[i, j] for i in (0, 3, 6) for j in (0, 1, 4)])
+    np.testing.assert_allclose(grid.nodes, fine.nodes[source])
+    # 2 x 3 edges along i, 3 x 2 along j, each joining neighbouring crossings
+    assert len(grid.edges) == 12
+    steps = np.abs(grid.ij[grid.edges[:, 1]] - grid.ij[grid.edges[:, 0]]).sum(axis=1)
+    assert np.all(steps == 1)
+    assert len(grid.boundary) == 8 and len(grid.quads) == 4
+    np.testing.assert_array_equal(source[grid.group("corners")], fine.group("corners"))
+    for bad in ([0, 3], [1, 3, 6], [0, 3, 3, 6]):
+        with pytest.raises(ModelError, match="i lines must increase from 0 to 6"):
+            fine.lattice(bad, [0, 4])
+
+
+def test_coarsened_net_keeps_the_load_the_slack_and_the_supports():
+    net = hanging_net(rectangle_grid(12.0, 6.0, 12, 6), SIX_POINTS, slack=0.05, EA=2.0e4,
+                      node_mass=np.linspace(0.0, 3.0, 13 * 7), loads=np.tile([0.0, 0.0, -5.0], (13 * 7, 1)))
+    coarse = coarsened_net(net, 3)
+    # every third line, and the line j = 2 of two suspension points
+    u, v = structured_lines(coarse)
+    np.testing.assert_allclose(u * 12, [0, 3, 6, 9, 12])
+    np.testing.assert_allclose(v * 6, [0, 2, 3, 6])
+    # the same load: weight of every mass plus the nodal loads
+    assert coarse.total_weight() == pytest.approx(net.total_weight(), rel=1e-12)
+    # the same suspension points, where they were
+    src = coarse.info["source"]
+    np.testing.assert_array_equal(np.sort(src[coarse.supports]), np.sort(net.supports))
+    # a chain of straight fine ropes keeps their slack
+    span = np.linalg.norm(np.diff(coarse.grid.nodes[coarse.rope_edges], axis=1)[:, 0], axis=1)
+    np.testing.assert_allclose(coarse.rest_length, 1.05 * span, rtol=1e-12)
+    # stiffness of the chain in series (that of one fine rope) times the fine lines it carries:
+    # j lines 0, 2, 3, 6 have gaps 2, 1, 3; the i lines are three apart
+    carried = {0: 2.0, 2: 1.5, 3: 2.0, 6: 3.0}
+    j_of = np.rint(v[coarse.grid.ij[coarse.rope_edges[:, 0], 1]] * 6).astype(int)
+    expected = np.where(coarse.family == 0, [carried[j] for j in j_of], 3.0) * 2.0e4
+    np.testing.assert_allclose(coarse.EA, expected, rtol=1e-12)
+
+
+def test_coarsened_net_keeps_lifted_frames_and_their_lines():
+    frames = [{"from": [0, 0], "to": [0, 8]}, {"from": [16, 0], "to": [16, 8]}, {"from": [5, 0], "to": [5, 8], "rise": 1.0}]
+    net = hanging_net(rectangle_grid(8.0, 4.0, 16, 8), {"frames": frames}, slack=0.05)
+    coarse = coarsened_net(net, 4)
+    u, _ = structured_lines(coarse)
+    np.testing.assert_allclose(u * 16, [0, 4, 5, 8, 12, 16])
+    src = coarse.info["source"]
+    # the arch stays lifted, and the ropes along it stay out of the net
+    np.testing.assert_allclose(coarse.structure.nodes, net.structure.nodes[src])
+    assert coarse.structure.nodes[:, 2].max() == pytest.approx(1.0)
+    assert set(map(tuple, src[coarse.rope_edges].tolist())).isdisjoint(map(tuple, net.info["held_ropes"].tolist()))
+    assert not np.any(np.all(np.isin(src[coarse.rope_edges], net.supports), axis=1))
+
+
+def test_coarsening_is_refused_where_it_would_not_coarsen():
+    net = hanging_net(rectangle_grid(4.0, 4.0, 4, 4), {"groups": ["boundary"]}, slack=0.05)
+    with pytest.raises(ModelError, match="at least 2"):
+        coarsened_net(net, 1)
+    points = {"positions": [[i, j] for i in range(5) for j in range(5) if (i + j) % 2 == 0]}
+    scattered = hanging_net(rectangle_grid(4.0, 4.0, 4, 4), points, slack=0.05)
+    with pytest.raises(ModelError, match="would not be coarse"):
+        coarsened_net(scattered, 3)
+
+
+def _assert_linear_field_carries_over(coarse_net, net):
+    """A force-density field linear in the structured coordinates is interpolated exactly inside the coarse lattice."""
+    def field(uv, fam):  # one per family
+        return (100.0 + 40.0 * uv[:, 0] - 25.0 * uv[:, 1]) * (1.0 if fam == 0 else 1.5)
+
+    def midpoints(n):
+        u, v = structured_lines(n)
+        uv = np.column_stack([u[n.grid.ij[:, 0]], v[n.grid.ij[:, 1]]])
+        return 0.5 * (uv[n.rope_edges[:, 0]] + uv[n.rope_edges[:, 1]])
+
+    cm = midpoints(coarse_net)
+    density = np.where(coarse_net.family == 0, field(cm, 0), field(cm, 1))
+    length = np.full(len(density), 3.0)
+    coarse = SimpleNamespace(net=coarse_net, tension=density * length, length=length)
+    q = transferred_force_densities(coarse, net)
+    ratio = net.total_weight() / coarse_net.total_weight()
+    fm = midpoints(net)
+    for fam in (0, 1):
+        sel = net.family == fam
+        lo, hi = cm[coarse_net.family == fam].min(axis=0), cm[coarse_net.family == fam].max(axis=0)
+        inside = sel & np.all((fm >= lo - 1e-12) & (fm <= hi + 1e-12), axis=1)
+        assert inside.sum() > 10
+        assert q[inside] == pytest.approx(ratio * field(fm[inside], fam), rel=1e-12)
+        # beyond it, the edge values of the lattice
+        assert np.all(q[sel] >= ratio * field(fm[sel], fam).min() * 0.99)
+
+
+def test_force_densities_carry_over_from_a_coarser_net():
+    coarse_net = hanging_net(rectangle_grid(8.0, 4.0, 4, 2), SIX_POINTS, slack=0.05)
+    net = hanging_net(rectangle_grid(8.0, 4.0, 12, 6), SIX_POINTS, slack=0.05)
+    # a net on its own coarser grid weighs less: the densities scale with the weights
+    assert net.total_weight() / coarse_net.total_weight() > 2
+    _assert_linear_field_carries_over(coarse_net, net)
+
+
+def test_force_densities_carry_over_from_an_uneven_lattice():
+    # corners and one inner point, so that no coarse rope joins two supports (and goes missing)
+    net = hanging_net(rectangle_grid(12.0, 6.0, 12, 6), {"groups": ["corners"], "positions": [[4, 2]]}, slack=0.05)
+    coarse_net = coarsened_net(net, 3)
+    u, v = structured_lines(coarse_net)  # not evenly spaced
+    np.testing.assert_allclose(u * 12, [0, 3, 4, 6, 9, 12])
+    np.testing.assert_allclose(v * 6, [0, 2, 3, 6])
+    assert len(coarse_net.rope_edges) == len(coarse_net.grid.edges)
+    assert coarse_net.total_weight() == pytest.approx(net.total_weight())
+    _assert_linear_field_carries_over(coarse_net, net)
+
+
+def test_coarse_net_start_reaches_the_default_shape():
+    frames = [{"from": [0, 0], "to": [0, 12]}, {"from": [24, 0], "to": [24, 12]}]
+    net = hanging_net(rectangle_grid(12.0, 6.0, 24, 12), {"frames": frames}, slack=0.05)
+    default = form_find(net, rtol=1e-9)
+    coarse = form_find(net, start="coarse_net", rtol=1e-9)
+    assert coarse.converged and coarse.relaxation.start == "coarse_net"
+    assert np.abs(coarse.positions - default.positions).max() < 1e-6
+    assert form_find(net, default.positions.ravel(), start="coarse_net").relaxation.start == "given"
+    with pytest.raises(ModelError, match="unknown start 'coarse'"):
+        form_find(net, start="coarse")
+
+
+def test_rope_stiffness_per_grid_edge_follows_the_grid_order():
+    grid = rectangle_grid(3.0, 2.0, 3, 2)
+    EA = 1000.0 + np.arange(len(grid.edges))
+    net = hanging_net(grid, {"groups": ["south", "north"]}, slack=0.05, EA=EA)
+    index = {tuple(e): k for k, e in enumerate(grid.edges.tolist())}
+    np.testing.assert_array_equal(net.EA, EA[[index[tuple(e)] for e in net.rope_edges.tolist()]])
+    with pytest.raises(ModelError, match="one per grid edge"):
+        hanging_net(grid, {"groups": ["south", "north"]}, slack=0.05, EA=EA[:-1])
