@@ -247,8 +247,8 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         start = "auto"
     system = net.system()
     res = relax(system, q0, scheme=scheme, start=start, **relax_options)
-    if coarse is not None and q0 is not None:
-        res = replace(res, start="coarse_net", wall_time_s=res.wall_time_s + prep)
+    if coarse is not None:  # the coarse net's time counts even when its start could not be used
+        res = replace(res, start="coarse_net" if q0 is not None else res.start, wall_time_s=res.wall_time_s + prep)
     out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
     for w in out.warnings[len(notes):]:
         warnings.warn(w, OverstretchWarning, stacklevel=2)
