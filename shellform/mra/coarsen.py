@@ -16,6 +16,7 @@ load, distributed the same way.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import ModelError
 from .net import HangingNet, hanging_net
@@ -135,11 +136,15 @@ def _unkept_supports(is_support: np.ndarray, i_lines: np.ndarray, j_lines: np.nd
 
 def _whole_chains(mask: np.ndarray, lines: np.ndarray) -> np.ndarray:
     """Nodes whose stretch of axis 0 between kept lines holds only masked nodes."""
-    n = mask.shape[0]
-    seg = np.clip(np.searchsorted(lines, np.arange(n), side="right") - 1, 0, len(lines) - 2)
+    seg = _segment(lines, np.arange(mask.shape[0]))
     a, b = lines[seg], lines[seg + 1]
     count = np.vstack([np.zeros((1, mask.shape[1])), np.cumsum(mask, axis=0)])
     return (count[b + 1] - count[a]) == (b - a + 1)[:, None]
+
+
+def _segment(lines: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Index of the gap between kept lines that holds each fine line ``x`` (the last gap holds the last line)."""
+    return np.clip(np.searchsorted(lines, x, side="right") - 1, 0, len(lines) - 2)
 
 
 def _chains(net: HangingNet, lines) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -190,13 +195,11 @@ def _chains(net: HangingNet, lines) -> tuple[list[np.ndarray], list[np.ndarray]]
 
 def _bilinear_shares(ij: np.ndarray, lines, shape) -> np.ndarray:
     """Sparse ``(n_fine, n_coarse)`` matrix sharing each fine node among the four crossings around it."""
-    import scipy.sparse as sp
-
     idx, frac = [], []
     for axis in (0, 1):
         kept = lines[axis]
         x = ij[:, axis]
-        seg = np.clip(np.searchsorted(kept, x, side="right") - 1, 0, len(kept) - 2)
+        seg = _segment(kept, x)
         idx.append(seg)
         frac.append((x - kept[seg]) / (kept[seg + 1] - kept[seg]))
     (a, b), (s, t) = idx, frac
