@@ -9,7 +9,7 @@ from shellform import ModelError
 from shellform.geometry import rectangle_grid
 from shellform.mra import form_find, hanging_net
 from shellform.mra.coarsen import coarsened_net, structured_lines
-from shellform.mra.start import transferred_force_densities
+from shellform.mra.start import coarse_force_density_start, transferred_force_densities
 
 SIX_POINTS = {"positions": [[0, 0], [-1, 0], [0, -1], [-1, -1], [0, 2], [-1, 2]]}
 
@@ -136,6 +136,20 @@ def test_coarse_net_start_reaches_the_default_shape():
     assert form_find(net, default.positions.ravel(), start="coarse_net").relaxation.start == "given"
     with pytest.raises(ModelError, match="unknown start 'coarse'"):
         form_find(net, start="coarse")
+
+
+def test_lowered_force_densities_hang_the_start_deeper_in_proportion():
+    net = hanging_net(rectangle_grid(12.0, 12.0, 12, 12), {"groups": ["boundary"]}, slack=0.05)
+    coarse = form_find(coarsened_net(net, 3))
+    as_is = coarse_force_density_start(coarse, net, 1.0).reshape(-1, 3)
+    lowered = coarse_force_density_start(coarse, net).reshape(-1, 3)
+    # under vertical loads the planform positions depend only on the density ratios,
+    # the sag below the (level) rim on their level
+    np.testing.assert_allclose(lowered[:, :2], as_is[:, :2], atol=1e-12)
+    np.testing.assert_allclose(lowered[:, 2], as_is[:, 2] / 0.9, rtol=1e-10, atol=1e-12)
+    assert as_is[:, 2].min() < -0.1
+    with pytest.raises(ModelError, match="density_scale must be positive"):
+        coarse_force_density_start(coarse, net, 0.0)
 
 
 def test_rope_stiffness_per_grid_edge_follows_the_grid_order():

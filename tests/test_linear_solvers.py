@@ -105,3 +105,48 @@ def test_cholesky_reuses_its_analysis_on_the_same_pattern_and_redoes_it_on_anoth
     F3 = CholeskyFactor(B, previous=F2)
     assert F2._symbolic is not None
     assert np.allclose(B @ F3.solve(b[:, 0]), b[:, 0])
+
+
+def _with_explicit_zeros(A, rows):
+    """``A`` with the off-diagonal entries of ``rows`` (and their mirrors) set to stored zeros."""
+    A = sp.csr_matrix(A, copy=True)
+    coo = A.tocoo()
+    hit = (np.isin(coo.row, rows) | np.isin(coo.col, rows)) & (coo.row != coo.col)
+    data = np.where(hit, 0.0, coo.data)
+    out = sp.csr_matrix((data, (coo.row, coo.col)), shape=A.shape)
+    assert out.nnz == A.nnz  # the zeros stay stored
+    return out
+
+
+def test_cholesky_leaves_exact_zeros_out_of_its_analysis():
+    A = laplacian_3d(40) + sp.eye(120)
+    b = np.random.default_rng(2).normal(size=A.shape[0])
+    lower_nonzeros = lambda M: sp.tril(M).count_nonzero()  # noqa: E731
+    A1 = _with_explicit_zeros(A, [4, 11])  # e.g. two slack members: the same stored pattern, other zeros
+    F1 = CholeskyFactor(A1)
+    assert len(F1._M.V) == lower_nonzeros(A1) < sp.tril(A1).nnz
+    assert np.allclose(A1 @ F1.solve(b), b)
+    # entries that became nonzero need a new analysis; F1 keeps its own
+    A2 = _with_explicit_zeros(A, [7])
+    F2 = CholeskyFactor(A2, previous=F1)
+    assert F1._symbolic is not None
+    assert np.allclose(A2 @ F2.solve(b), b)
+    # fewer nonzeros, other values: the analysis is taken over while the zeros in it are few
+    A3 = 2.0 * _with_explicit_zeros(A, [7, 20])
+    F3 = CholeskyFactor(A3, previous=F2)
+    assert F2._symbolic is None
+    assert np.allclose(A3 @ F3.solve(b), b)
+    # many more zeros: analysed afresh without them
+    A4 = _with_explicit_zeros(A, np.arange(0, 120, 3))
+    F4 = CholeskyFactor(A4, previous=F3)
+    assert F3._symbolic is not None and len(F4._M.V) == lower_nonzeros(A4)
+    assert np.allclose(A4 @ F4.solve(b), b)
+
+
+def test_cholesky_names_a_row_without_a_diagonal_entry():
+    A = sp.lil_matrix(laplacian_3d(10) + sp.eye(30))
+    A[5, 5] = 0.0
+    A = sp.csr_matrix(A)
+    A.eliminate_zeros()
+    with pytest.raises(SingularMatrixError, match="row 5 has no diagonal entry"):
+        CholeskyFactor(A)

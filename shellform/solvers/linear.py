@@ -223,6 +223,24 @@ class LDLFactor:
         return self.min_pivot_ratio > pivot_tol and self.backward_error() < backward_tol
 
 
+#: Largest share of exact zeros a :class:`CholeskyFactor` keeps in its analysis.
+#: On a 100 x 100 rope net with 13 % of the tangent's entries zero (slack
+#: ropes), one numeric factorisation took 11 ms without them against 20 ms
+#: with them, and a new analysis costs 8 ms; at 316 x 316, 0.15 s against
+#: 0.53 s, and 0.14 s. Over the first 40 factorisations of a relaxation of
+#: the 316 x 316 net (analysis + numeric): 21.6 s with every stored entry,
+#: 11.3 s analysing only the nonzeros every time, 13.3 s with this 5 % rule;
+#: over a whole relaxation of the 100 x 100 net 1.58 s, 1.39 s and 1.23 s
+#: (the analysis is redone 43 times instead of 71).
+ZERO_SHARE = 0.05
+
+
+def _zero_share(analysed: np.ndarray, needed: np.ndarray) -> float:
+    """Share of the analysed entries that are not needed (exact zeros)."""
+    n = np.count_nonzero(analysed)
+    return np.count_nonzero(analysed & ~needed) / n if n else 0.0
+
+
 class CholeskyFactor:
     """Supernodal sparse Cholesky ``A = L L^T`` (CHOLMOD) for symmetric positive definite matrices.
 
@@ -239,9 +257,9 @@ class CholeskyFactor:
     A : sparse matrix
         Symmetric positive definite (its upper triangle is used).
     previous : CholeskyFactor, optional
-        A factor of a matrix with the same sparsity pattern: its ordering and
-        symbolic analysis are reused and its storage is taken over (it cannot
-        solve afterwards).
+        A factor of a matrix with the same nonzero entries (exact zeros are
+        left out): its ordering and symbolic analysis are reused and its
+        storage is taken over (it cannot solve afterwards).
 
     Raises
     ------
@@ -255,25 +273,43 @@ class CholeskyFactor:
         from cvxopt import cholmod, matrix, spmatrix
 
         A = sp.csr_matrix(A)
+        if not A.has_canonical_format:
+            A = A.copy()
+            A.sum_duplicates()
         self.shape = A.shape
-        self._source = None
-        if (previous is not None and previous._symbolic is not None and previous._source is not None
-                and A.has_canonical_format and np.array_equal(previous._source[0], A.indptr)
-                and np.array_equal(previous._source[1], A.indices)):
-            # same pattern as the previous matrix: take its upper triangle by index, reuse the analysis
-            self._source, self._M, self._symbolic = previous._source, previous._M, previous._symbolic
+        n = A.shape[0]
+        row = np.repeat(np.arange(n), np.diff(A.indptr))
+        on_diagonal = A.indices == row
+        if np.count_nonzero(on_diagonal) < n:
+            missing = np.setdiff1d(np.arange(n), row[on_diagonal])
+            raise SingularMatrixError(
+                f"Cholesky factorisation: row {int(missing[0])} has no diagonal entry "
+                f"({missing.size} such rows): the matrix is not positive definite")
+        # Exact zeros are left out of the analysis: a slack rope's block of a
+        # tangent is exactly zero, and analysed as if the rope were taut it
+        # fills the factor all the same (see ZERO_SHARE).
+        lower = A.indices <= row
+        needed = lower & ((A.data != 0.0) | on_diagonal)
+        same_pattern = (previous is not None and previous._symbolic is not None
+                        and np.array_equal(previous._indptr, A.indptr) and np.array_equal(previous._indices, A.indices))
+        if same_pattern and not np.any(needed & ~previous._analysed) and _zero_share(previous._analysed, needed) <= ZERO_SHARE:
+            # the previous analysis covers these nonzeros: reuse it and take over its storage
+            self._M, self._symbolic, self._analysed = previous._M, previous._symbolic, previous._analysed
+            self._indptr, self._indices = previous._indptr, previous._indices
             previous._symbolic = None
-            self._M.V = matrix(A.data[self._source[2]])
+            self._M.V = matrix(A.data[np.flatnonzero(self._analysed)])
         else:
-            U = _upper_csc(A)
-            cols = np.repeat(np.arange(U.shape[1], dtype=np.int64), np.diff(U.indptr))
-            self._M = spmatrix(matrix(U.data), matrix(U.indices.astype(np.int64)), matrix(cols), U.shape)
+            # entries that were nonzero a moment ago are likely to be again (a rope going slack
+            # and taut): keep them in the new analysis while they are few
+            analysed = needed | previous._analysed if same_pattern else needed
+            if _zero_share(analysed, needed) > ZERO_SHARE:
+                analysed = needed
+            keep = np.flatnonzero(analysed)
+            # the lower triangle of the CSR arrays is the upper triangle in CSC order (A is symmetric)
+            self._M = spmatrix(matrix(A.data[keep]), matrix(A.indices[keep].astype(np.int64)),
+                               matrix(row[keep].astype(np.int64)), A.shape)
             self._symbolic = cholmod.symbolic(self._M, uplo="U")
-            row = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-            keep = np.flatnonzero(A.indices <= row)
-            if A.has_canonical_format and keep.size == U.nnz:
-                # the lower triangle of the CSR arrays is U in CSC order (see _upper_csc)
-                self._source = (A.indptr.copy(), A.indices.copy(), keep)
+            self._analysed, self._indptr, self._indices = analysed, A.indptr.copy(), A.indices.copy()
         try:
             cholmod.numeric(self._M, self._symbolic)
         except ArithmeticError as exc:
