@@ -22,8 +22,6 @@ import argparse
 import json
 import time
 
-import numpy as np
-
 from shellform.gridshell.hemisphere import build_hemisphere, prestress_on_net
 from shellform.gridshell.indentation import indentation_system, trace_indentation
 

@@ -201,7 +201,7 @@ def dish(x_range, y_range, depth: float, n_ctrl: int = 4, degree: int = 3) -> He
     normalised planform coordinates ``s, t`` in [-1, 1], scaled so the centre
     of the surface is ``depth`` below the rim (which stays at zero).
     """
-    nu = nv = max(int(n_ctrl), 2)
+    nu = max(int(n_ctrl), 2)
     pu = min(degree, nu - 1)
     k = clamped_uniform_knots(nu, pu)
     g = 2.0 * greville_abscissae(k, pu) - 1.0

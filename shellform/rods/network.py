@@ -41,10 +41,8 @@ from ..model import Structure, broadcast_property
 from .kinematics import (
     ReferenceFrames,
     curvature_binormal,
-    dot,
     material_curvatures,
     material_frames,
-    normalize,
     parallel_transport,
     perpendicular_director,
     signed_angle,
@@ -334,7 +332,6 @@ class RodNetwork:
             raise ModelError(f"rod {name!r}: node index {bad} is out of range (the structure has {s.n_nodes} nodes)")
         if len(np.unique(idx)) != len(idx):
             raise ModelError(f"rod {name!r}: a node appears twice along the rod")
-        N = len(idx)
         e_nodes = np.stack([idx, np.roll(idx, -1)], axis=1) if closed else np.stack([idx[:-1], idx[1:]], axis=1)
         m = len(e_nodes)
         x = s.nodes

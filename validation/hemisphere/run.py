@@ -38,7 +38,6 @@ from shellform.gridshell.study import (  # noqa: E402
     SNAPSHOTS,
     SOURCE,
     TOLERANCE,
-    compare_thresholds,
     construction_case,
     indentation_case,
 )
