@@ -6,16 +6,20 @@ rope tensions and strains, about 4e-5, do not change with n). Each size is
 relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 1e-6 sqrt(g L)) with
 
-* the fast scheme (implicit pseudo-transient steps, default options: start
-  from the force-density shape, slack-rope active set, CHOLMOD supernodal
-  Cholesky);
+* the fast scheme (implicit pseudo-transient steps, default options: slack-rope
+  active set, CHOLMOD supernodal Cholesky, and the default start: the coarse
+  net's (below) on nets of ``COARSE_START_NODES`` nodes or more, the
+  force-density shape below that);
+* the same scheme started from the force-density shape on every size
+  (``--force-density-sizes``), for the ratio the coarse start makes;
 * the same scheme started from the shape in balance with the force densities
-  of a hanging net with a third of the nodes per side (``--coarse-sizes``;
-  the coarse relaxation is included in the wall time);
+  of a hanging net with a third of the nodes per side, built from the
+  benchmark's parameters (``--coarse-sizes``; the coarse relaxation is
+  included in the wall time);
 * the same scheme with ``form_find(start="coarse_net")`` (``--coarse-net-sizes``):
   the coarse net is built from the fine one (:func:`shellform.mra.coarsen.coarsened_net`,
   every third grid line, the full weight) instead of from the benchmark's
-  parameters;
+  parameters; the default start on large nets;
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -28,8 +32,9 @@ Every run is a separate process, so its peak memory (``ru_maxrss``) is its
 own; runs go one after another. Prints a table and writes
 ``benchmarks/results/bench_mra.json`` and ``.md``.
 
-Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--before-sizes 32 100] [--ldl-sizes 32 100]
-      [--plain-sizes 32 100] [--coarse-sizes 32 100 316] [--coarse-net-sizes 32 100 316] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
+Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes 32 100 316]
+      [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
+      [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
 from __future__ import annotations
@@ -55,6 +60,7 @@ SLACK = 0.05
 # the variants of a run: relax options
 VARIANTS = {
     "fast": {"scheme": "implicit"},
+    "force_density": {"scheme": "implicit", "start": "force_density"},
     "ldl": {"scheme": "implicit", "linear_solver": "ldl"},
     "plain": {"scheme": "implicit", "slack_active_set": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
@@ -138,8 +144,9 @@ def main():
     ap.add_argument("--before-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--ldl-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--force-density-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
-    ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32, 100, 316])
+    ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32])
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
     ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
@@ -164,7 +171,8 @@ def main():
         row, pos = run(n, "fast", args.wall, args.verbose)
         fast[n] = (row, pos)
         report(row)
-        for variant, chosen in (("coarse", args.coarse_sizes), ("coarse_net", args.coarse_net_sizes),
+        for variant, chosen in (("force_density", args.force_density_sizes), ("coarse", args.coarse_sizes),
+                                ("coarse_net", args.coarse_net_sizes),
                                 ("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SceneError
+from .mra.formfind import COARSE_START_NODES
 
 _REQUIRED = object()
 
@@ -415,10 +416,12 @@ RELAXATION = Table(
                              choices=("auto", "cholesky", "ldl", "nd", "amg", "direct")),
         "slack_active_set": Key("bool", "Implicit scheme: solve each step again with the slack ropes it would "
                                 "stretch modelled as taut: about half the steps, each up to three solves.", default=True),
-        "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is the force-density shape "
-                     "for the implicit scheme and the flat planform for the explicit ones (as in the paper); "
-                     "'reference' forces the planform, 'force_density' the force-density shape.", default="auto",
-                     choices=("auto", "reference", "force_density")),
+        "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
+                     f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
+                     "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "
+                     "planform, 'force_density' the force-density shape, 'coarse_net' the shape in balance with "
+                     "the force densities of the net with every third grid line, hung first.", default="auto",
+                     choices=("auto", "reference", "force_density", "coarse_net")),
         "dt": Key("float", "Explicit time step (default 90 % of the stability bound) or first pseudo time step.",
                   default=None, unit="s", **_POS),
         "checkpoint_interval": Key("float", "Save the relaxation state to DIR/relaxation_checkpoint.npz at most "

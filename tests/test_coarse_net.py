@@ -138,6 +138,23 @@ def test_coarse_net_start_reaches_the_default_shape():
         form_find(net, start="coarse")
 
 
+def test_large_nets_start_from_their_coarse_net_by_default(monkeypatch):
+    from shellform.mra import formfind
+
+    net = hanging_net(rectangle_grid(12.0, 12.0, 12, 12), {"groups": ["boundary"]}, slack=0.05)
+    assert form_find(net).relaxation.start == "force_density"
+    monkeypatch.setattr(formfind, "COARSE_START_NODES", net.structure.n_nodes)
+    assert form_find(net).relaxation.start == "coarse_net"
+    assert form_find(net, start="force_density").relaxation.start == "force_density"
+    assert form_find(net, scheme="kinetic", max_iterations=10).relaxation.start == "reference"
+    # a net too small to coarsen starts from the force-density shape, unless the coarse net was asked for
+    small = hanging_net(rectangle_grid(3.0, 3.0, 3, 3), {"groups": ["boundary"]}, slack=0.05)
+    monkeypatch.setattr(formfind, "COARSE_START_NODES", 1)
+    assert form_find(small).relaxation.start == "force_density"
+    with pytest.raises(ModelError, match="coarse net"):
+        form_find(small, start="coarse_net")
+
+
 def test_lowered_force_densities_hang_the_start_deeper_in_proportion():
     net = hanging_net(rectangle_grid(12.0, 12.0, 12, 12), {"groups": ["boundary"]}, slack=0.05)
     coarse = form_find(coarsened_net(net, 3))

@@ -42,8 +42,9 @@ def coarsened_net(net: HangingNet, factor: int = 3) -> HangingNet:
     Raises
     ------
     ModelError
-        When ``factor`` is below 2, or when the suspension points lie on so
-        many lines that the coarse net would keep more than half the nodes.
+        When ``factor`` is below 2, when the suspension points lie on so
+        many lines that the coarse net would keep more than half the nodes,
+        or when the coarse net has nothing left to hang.
     """
     if int(factor) != factor or factor < 2:
         raise ModelError(f"coarse net: the coarsening factor must be an integer of at least 2, got {factor}")
@@ -84,10 +85,14 @@ def coarsened_net(net: HangingNet, factor: int = 3) -> HangingNet:
     loads = sum((c.forces for c in s.load_cases), np.zeros((grid.n_nodes, 3)))
     share = _bilinear_shares(grid.ij, lines, coarse.shape)
     sup = np.flatnonzero(is_support[lines[0]][:, lines[1]].ravel())
-    out = hanging_net(coarse, {"nodes": sup.tolist(), "dofs": net.info.get("support_dofs", "xyz")},
-                      slack=chain_rest / span - 1.0, EA=w * chain_rest / chain_comp, mass_per_length=0.0,
-                      node_mass=share.T @ s.nodal_mass(), gravity=gravity,
-                      loads=share.T @ loads if s.load_cases else None)
+    try:
+        out = hanging_net(coarse, {"nodes": sup.tolist(), "dofs": net.info.get("support_dofs", "xyz")},
+                          slack=chain_rest / span - 1.0, EA=w * chain_rest / chain_comp, mass_per_length=0.0,
+                          node_mass=share.T @ s.nodal_mass(), gravity=gravity,
+                          loads=share.T @ loads if s.load_cases else None)
+    except ModelError as exc:
+        # e.g. a net so small that every kept crossing is a suspension point
+        raise ModelError(f"coarse net ({len(lines[0])} x {len(lines[1])} of the {ni} x {nj} grid lines): {exc}") from None
     u, v = structured_lines(net)
     out.info["lattice"] = (u[lines[0]], v[lines[1]])
     out.info["source"] = source

@@ -35,6 +35,12 @@ class OverstretchWarning(UserWarning):
 #: default), so 1 % is a hundred times what the weight alone should cause.
 STRAIN_LIMIT = 0.01
 
+#: Nets with at least this many nodes start from their coarse net by default
+#: (``start="auto"``, implicit scheme). Measured on the square nets of
+#: ``benchmarks/bench_mra.py`` (``benchmarks/results/bench_mra.md``): at 1,024
+#: nodes the coarse net costs what it saves, at 10,000 it saves a third.
+COARSE_START_NODES = 5000
+
 
 @dataclass
 class FormFindingResult:
@@ -207,8 +213,11 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         (``"force_density"``), or the shape in balance with the force
         densities of the net's :func:`~shellform.mra.coarsen.coarsened_net`,
         hung first (``"coarse_net"``; its time is counted in the wall time).
-        ``"auto"``: the force-density shape for the implicit scheme, the
-        planform for the explicit ones.
+        ``"auto"``: for the implicit scheme the coarse net on nets of
+        :data:`COARSE_START_NODES` nodes or more that can be coarsened
+        (the coarse net then starts from its own coarse net in turn while it
+        is that large), else the force-density shape; the planform for the
+        explicit schemes.
     coarsening : int
         Grid lines kept by the ``"coarse_net"`` start (every third by default).
     **relax_options
@@ -233,14 +242,20 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     if start not in START_STATES + ("coarse_net",):
         raise ModelError(f"form finding: unknown start {start!r}; expected one of {START_STATES + ('coarse_net',)}")
     prep, coarse = 0.0, None
-    if start == "coarse_net" and q0 is None:
+    by_default = start == "auto" and scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
+    if q0 is None and (start == "coarse_net" or by_default):
         from .start import coarse_net_start  # start.py builds on this module
 
         t0 = time.perf_counter()
         options = {k: v for k, v in relax_options.items() if k not in ("callback", "progress_every")}
-        q0, coarse = coarse_net_start(net, coarsening, scheme=scheme, **options)
+        try:
+            q0, coarse = coarse_net_start(net, coarsening, scheme=scheme, **options)
+        except ModelError:
+            if not by_default:
+                raise
+            # a net that cannot be coarsened starts as a small one would
         prep = time.perf_counter() - t0
-        if q0 is None:
+        if coarse is not None and q0 is None:
             notes.append("the coarse net's force densities do not hold every free node; "
                          "started from the force-density shape instead")
     if start == "coarse_net":
