@@ -278,26 +278,33 @@ class CholeskyFactor:
             A.sum_duplicates()
         self.shape = A.shape
         n = A.shape[0]
-        row = np.repeat(np.arange(n), np.diff(A.indptr))
-        on_diagonal = A.indices == row
-        if np.count_nonzero(on_diagonal) < n:
-            missing = np.setdiff1d(np.arange(n), row[on_diagonal])
-            raise SingularMatrixError(
-                f"Cholesky factorisation: row {int(missing[0])} has no diagonal entry "
-                f"({missing.size} such rows): the matrix is not positive definite")
+        same_pattern = (previous is not None and previous._symbolic is not None
+                        and np.array_equal(previous._indptr, A.indptr) and np.array_equal(previous._indices, A.indices))
+        if same_pattern:
+            # the stored pattern's rows and triangle were worked out (and checked) with the previous matrix
+            row, on_diagonal, lower = previous._row, previous._on_diagonal, previous._lower
+        else:
+            row = np.repeat(np.arange(n), np.diff(A.indptr))
+            on_diagonal = A.indices == row
+            if np.count_nonzero(on_diagonal) < n:
+                missing = np.setdiff1d(np.arange(n), row[on_diagonal])
+                raise SingularMatrixError(
+                    f"Cholesky factorisation: row {int(missing[0])} has no diagonal entry "
+                    f"({missing.size} such rows): the matrix is not positive definite")
+            lower = A.indices <= row
+        self._indptr, self._indices = (previous._indptr, previous._indices) if same_pattern else (
+            A.indptr.copy(), A.indices.copy())
+        self._row, self._on_diagonal, self._lower = row, on_diagonal, lower
         # Exact zeros are left out of the analysis: a slack rope's block of a
         # tangent is exactly zero, and analysed as if the rope were taut it
         # fills the factor all the same (see ZERO_SHARE).
-        lower = A.indices <= row
         needed = lower & ((A.data != 0.0) | on_diagonal)
-        same_pattern = (previous is not None and previous._symbolic is not None
-                        and np.array_equal(previous._indptr, A.indptr) and np.array_equal(previous._indices, A.indices))
         if same_pattern and not np.any(needed & ~previous._analysed) and _zero_share(previous._analysed, needed) <= ZERO_SHARE:
             # the previous analysis covers these nonzeros: reuse it and take over its storage
-            self._M, self._symbolic, self._analysed = previous._M, previous._symbolic, previous._analysed
-            self._indptr, self._indices = previous._indptr, previous._indices
+            self._M, self._symbolic = previous._M, previous._symbolic
+            self._analysed, self._keep = previous._analysed, previous._keep
             previous._symbolic = None
-            self._M.V = matrix(A.data[np.flatnonzero(self._analysed)])
+            self._M.V = matrix(A.data[self._keep])
         else:
             # entries that were nonzero a moment ago are likely to be again (a rope going slack
             # and taut): keep them in the new analysis while they are few
@@ -309,7 +316,7 @@ class CholeskyFactor:
             self._M = spmatrix(matrix(A.data[keep]), matrix(A.indices[keep].astype(np.int64)),
                                matrix(row[keep].astype(np.int64)), A.shape)
             self._symbolic = cholmod.symbolic(self._M, uplo="U")
-            self._analysed, self._indptr, self._indices = analysed, A.indptr.copy(), A.indices.copy()
+            self._analysed, self._keep = analysed, keep
         try:
             cholmod.numeric(self._M, self._symbolic)
         except ArithmeticError as exc:
