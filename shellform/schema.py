@@ -434,8 +434,9 @@ START_SHAPE = Table(
     fill_defaults=True,
     doc="Start shape of the form finding. Also read from a top-level [start] table.",
     keys={
-        "type": Key("str", "The flat planform, a B-spline dish, a B-spline fitted to a coarser hanging net, or "
-                    "the shape in balance with the force densities of a coarser hanging net.",
+        "type": Key("str", "No start surface ('flat': the [solver] start decides, the planform for the explicit "
+                    "schemes), a B-spline dish, a B-spline fitted to a coarser hanging net, or the shape in balance "
+                    "with the force densities of a coarser hanging net.",
                     default="flat", choices=("flat", "nurbs", "coarse_nurbs", "coarse_force_density")),
         "depth": Key("float", "nurbs: depth of the dish.", default=None, unit="m"),
         "control_heights": Key("grid", "nurbs: control heights over the planform box (instead of depth).",
