@@ -23,14 +23,13 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # the relaxation benchmark runs single-threaded too
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
+from results_table import write_results  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def taut_tangent(n: int) -> sp.csr_matrix:
@@ -97,11 +96,7 @@ def main(argv=None) -> None:
     load = os.getloadavg()
     lines += ["", f"Best of {args.repeat} runs; load average at the end {load[0]:.2f} (2 cores, shared). "
               f"Command: `python benchmarks/bench_factorization.py --sizes {' '.join(map(str, args.sizes))}`."]
-    text = "\n".join(lines)
-    print(text)
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "bench_factorization.md").write_text(text + "\n")
-    (RESULTS / "bench_factorization.json").write_text(json.dumps(rows, indent=1) + "\n")
+    write_results("bench_factorization", lines, rows)
 
 
 if __name__ == "__main__":

@@ -27,15 +27,14 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # the relaxation benchmark runs single-threaded too
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
+from results_table import write_results  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def captured_systems(n: int, keep_every: int = 8) -> tuple[list, int]:
@@ -131,11 +130,7 @@ def main(argv=None) -> None:
               f"{args.maxiter} iterations. Load average at the end {load[0]:.2f} (2 cores, shared). Command: "
               f"`python benchmarks/bench_tangent_solvers.py --sizes {' '.join(map(str, args.sizes))} "
               f"--systems {args.systems} --maxiter {args.maxiter}`."]
-    text = "\n".join(lines)
-    print(text)
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "bench_tangent_solvers.md").write_text(text + "\n")
-    (RESULTS / "bench_tangent_solvers.json").write_text(json.dumps(rows, indent=1) + "\n")
+    write_results("bench_tangent_solvers", lines, rows)
 
 
 if __name__ == "__main__":
