@@ -1,5 +1,6 @@
 """Coarser versions of a hanging net: the lattice of kept lines, its ropes and load, and the start it gives."""
 
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -177,3 +178,40 @@ def test_rope_stiffness_per_grid_edge_follows_the_grid_order():
     np.testing.assert_array_equal(net.EA, EA[[index[tuple(e)] for e in net.rope_edges.tolist()]])
     with pytest.raises(ModelError, match="one per grid edge"):
         hanging_net(grid, {"groups": ["south", "north"]}, slack=0.05, EA=EA[:-1])
+
+
+def test_coarse_nets_report_their_steps_as_text(monkeypatch):
+    from shellform.mra import formfind
+
+    net = hanging_net(rectangle_grid(12.0, 12.0, 12, 12), {"groups": ["boundary"]}, slack=0.05)
+    monkeypatch.setattr(formfind, "COARSE_START_NODES", net.structure.n_nodes)
+    lines, states = [], []
+    res = form_find(net, progress=lines.append, callback=lambda info: states.append(info.q.size))
+    coarse_nodes = coarsened_net(net, 3).structure.n_nodes
+    assert res.converged and res.relaxation.start == "coarse_net"
+    steps = [s for s in lines if "iteration" in s]
+    assert steps and all(f"coarse net of {coarse_nodes:,} nodes" in s for s in steps)
+    assert any(s.startswith(f"  coarse net of {coarse_nodes:,} nodes: at rest after") for s in lines)
+    # the callback sees the full net's states only
+    assert states and set(states) == {3 * net.structure.n_nodes}
+
+
+@pytest.mark.filterwarnings("ignore::shellform.mra.formfind.OverstretchWarning")  # stopped far from rest
+def test_the_wall_time_limit_covers_the_coarse_net(monkeypatch):
+    from shellform.mra import formfind, start
+
+    net = hanging_net(rectangle_grid(12.0, 12.0, 12, 12), {"groups": ["boundary"]}, slack=0.05)
+    monkeypatch.setattr(formfind, "COARSE_START_NODES", net.structure.n_nodes)
+    hang_coarse = start.coarse_net_start
+
+    def slow_coarse_start(*args, **kwargs):
+        out = hang_coarse(*args, **kwargs)
+        time.sleep(0.3)
+        return out
+
+    monkeypatch.setattr(start, "coarse_net_start", slow_coarse_start)
+    res = form_find(net, max_wall_time=0.2)
+    assert not res.converged
+    assert res.relaxation.message.startswith("not converged within the wall-time limit of 0.2 s (")
+    assert "on the coarse nets" in res.relaxation.message
+    assert res.relaxation.iterations <= 1

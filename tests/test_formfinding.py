@@ -329,8 +329,13 @@ def test_coarse_starts_reach_the_flat_start_shape(tmp_path, start):
         "start": {"type": start, "coarsening": 4, "compare_flat": True},
         "output": {"meshes": False},
     }
-    s = run_mra_case(params, tmp_path)
+    lines = []
+    s = run_mra_case(params, tmp_path, progress=lines.append)
     assert s["converged"] and s["start"]["type"] == start and s["start"]["coarse_converged"]
     assert s["start"]["coarse_nodes"] == 5 * 3
+    # the coarse net's steps are shown, labelled as such
+    coarse = [line for line in lines if line.startswith("  coarse net of 15 nodes:")]
+    assert any("iteration 1:" in line for line in coarse)
+    assert coarse[-1] == f"  coarse net of 15 nodes: at rest after {s['start']['coarse_iterations']} steps"
     flat = s["start"]["flat"]
     assert flat["converged"] and flat["max_position_difference"] < 1e-6

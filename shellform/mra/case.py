@@ -24,7 +24,8 @@ from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
 from ..io.summary import write_json
-from .formfind import STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, form_find
+from .formfind import (STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, coarse_net_progress,
+                       form_find)
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
@@ -125,8 +126,12 @@ def planform_box(net: HangingNet):
     return (float(x[:, 0].min()), float(x[:, 0].max())), (float(x[:, 1].min()), float(x[:, 1].max()))
 
 
-def start_state(p: dict, net: HangingNet, options: dict) -> tuple[np.ndarray | None, dict]:
-    """The start state of a case and a note on how it was made (with its cost)."""
+def start_state(p: dict, net: HangingNet, options: dict,
+                progress: Callable[[str], None] | None = None) -> tuple[np.ndarray | None, dict]:
+    """The start state of a case and a note on how it was made (with its cost).
+
+    ``progress`` receives the steps of the coarse net a ``coarse_*`` start hangs first.
+    """
     st = p["start"]
     kind = st["type"]
     if kind == "flat":
@@ -151,7 +156,11 @@ def start_state(p: dict, net: HangingNet, options: dict) -> tuple[np.ndarray | N
             # start, and the full net reports its own stretched ropes
             warnings.simplefilter("ignore", HypostaticWarning)
             warnings.simplefilter("ignore", OverstretchWarning)
-            coarse = form_find(coarse_net, **{**options, "callback": None})
+            shown = {"progress": progress, "callback": coarse_net_progress(progress)} if progress else {"callback": None}
+            coarse = form_find(coarse_net, **{**options, **shown})
+        if progress:
+            progress(f"  coarse net of {coarse_net.structure.n_nodes:,} nodes: "
+                     f"{'at rest' if coarse.converged else 'not at rest'} after {coarse.relaxation.iterations} steps")
         if kind == "coarse_nurbs":
             # a B-spline height field fitted to the coarse net carries the full net's nodes
             pts = coarse.positions.copy()
@@ -264,10 +273,12 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
     say(f"MRA case {p['name']!r}: {net.structure.n_nodes} nodes, {len(net.rope_edges)} ropes, "
         f"{len(net.supports)} suspension points, scheme {options['scheme']}")
     if q0 is None:
-        q0, start_note = start_state(p, net, options)
+        q0, start_note = start_state(p, net, options, progress)
     else:
         start_note = {"type": "resumed"}
     main_options = dict(options)
+    if progress is not None:
+        main_options["progress"] = progress  # the coarse nets' steps, on large nets
     if callback is not None:
         shown = options.get("callback")
         main_options["callback"] = callback if shown is None else (lambda info: bool(shown(info)) | bool(callback(info)))

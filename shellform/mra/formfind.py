@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -193,8 +194,17 @@ def evaluate_state(net: HangingNet, system, res: RelaxationResult, report: Hypos
     return out
 
 
+def coarse_net_progress(progress: Callable[[str], None]):
+    """A relaxation callback that reports a coarse net's steps as text (its states are not the net's)."""
+    def callback(info) -> None:
+        progress(f"  coarse net of {info.q.size // 3:,} nodes: {info.scheme} iteration {info.iteration}: "
+                 f"max acceleration {info.max_acceleration:.3e} m/s^2")
+    return callback
+
+
 def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit",
-              strain_limit: float = STRAIN_LIMIT, start: str = "auto", coarsening: int = 3, **relax_options):
+              strain_limit: float = STRAIN_LIMIT, start: str = "auto", coarsening: int = 3,
+              progress: Callable[[str], None] | None = None, **relax_options):
     """Let the net fall into its hanging shape.
 
     Parameters
@@ -220,9 +230,14 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         explicit schemes.
     coarsening : int
         Grid lines kept by the ``"coarse_net"`` start (every third by default).
+    progress : callable, optional
+        ``progress(message)`` receives a line per step of the coarse nets'
+        relaxations and one when each is at rest (the full net's steps go to
+        ``callback``, whose states have the full net's size).
     **relax_options
         Passed to :func:`shellform.solvers.relaxation.relax` (tolerances,
-        damping, callback, ...).
+        damping, callback, ...). A ``max_wall_time`` limits the whole form
+        finding, the coarse nets included.
 
     Returns
     -------
@@ -248,6 +263,8 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
 
         t0 = time.perf_counter()
         options = {k: v for k, v in relax_options.items() if k not in ("callback", "progress_every")}
+        if progress is not None:
+            options.update(progress=progress, callback=coarse_net_progress(progress))
         try:
             q0, coarse = coarse_net_start(net, coarsening, scheme=scheme, **options)
         except ModelError:
@@ -255,15 +272,25 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
                 raise
             # a net that cannot be coarsened starts as a small one would
         prep = time.perf_counter() - t0
+        if coarse is not None and progress is not None:
+            r = coarse.relaxation
+            progress(f"  coarse net of {coarse.net.structure.n_nodes:,} nodes: "
+                     f"{'at rest' if r.success else 'not at rest'} after {r.iterations} steps, {prep:.1f} s")
         if coarse is not None and q0 is None:
             notes.append("the coarse net's force densities do not hold every free node; "
                          "started from the force-density shape instead")
     if start == "coarse_net":
         start = "auto"
     system = net.system()
+    limit = relax_options.get("max_wall_time")
+    if limit is not None and prep > 0:
+        relax_options = {**relax_options, "max_wall_time": max(limit - prep, 0.0)}
     res = relax(system, q0, scheme=scheme, start=start, **relax_options)
     if coarse is not None:  # the coarse net's time counts even when its start could not be used
         res = replace(res, start="coarse_net" if q0 is not None else res.start, wall_time_s=res.wall_time_s + prep)
+        if limit is not None and "within the wall-time limit" in res.message:
+            res = replace(res, message=f"not converged within the wall-time limit of {limit:g} s "
+                                       f"({prep:.1f} s on the coarse nets, {res.iterations} iterations of the full net)")
     out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
     for w in out.warnings[len(notes):]:
         warnings.warn(w, OverstretchWarning, stacklevel=2)
