@@ -247,10 +247,12 @@ class CholeskyFactor:
     CHOLMOD (SuiteSparse, through cvxopt's binding) orders by approximate
     minimum degree like QDLDL but factorises dense supernodes with BLAS:
     on the tangent of a taut 316 x 316 rope net (295,788 unknowns) one
-    numeric refactorisation took 0.52 s against QDLDL's 9.9 s, and 0.021 s
-    against 0.095 s at 100 x 100 (``benchmarks/results/bench_factorization.md``).
-    It has no inertia: use :class:`LDLFactor` where the matrix may be
-    indefinite.
+    numeric refactorisation took 0.63 s against QDLDL's 9.6 s, and 0.022 s
+    against 0.11 s at 100 x 100 (``benchmarks/results/bench_factorization.md``).
+    Its time grows about as the number of unknowns to the power 1.45 on
+    these surface-like graphs (17.6 s at 1000 x 1000 nodes, 12 GB), in a
+    nested-dissection order as well. It has no inertia: use
+    :class:`LDLFactor` where the matrix may be indefinite.
 
     Parameters
     ----------

@@ -505,7 +505,7 @@ class _SPDSolve:
     (:class:`~shellform.solvers.linear.CholeskyFactor`) with its analysis
     kept for the fixed pattern: ``K + sigma M`` is positive definite here, so
     no inertia and no pivoting are needed. On the taut tangent of a
-    316 x 316 net one refactorisation took 0.52 s against QDLDL's 9.9 s
+    316 x 316 net one refactorisation took 0.63 s against QDLDL's 9.6 s
     (``benchmarks/results/bench_factorization.md``).
 
     ``"ldl"`` keeps one QDLDL object and refactorises numerically on the same
