@@ -24,8 +24,8 @@ from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
 from ..io.summary import write_json
-from .formfind import (STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, coarse_net_progress,
-                       form_find)
+from .formfind import (STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, coarse_net_outcome,
+                       coarse_net_progress, form_find)
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
@@ -159,8 +159,7 @@ def start_state(p: dict, net: HangingNet, options: dict,
             shown = {"progress": progress, "callback": coarse_net_progress(progress)} if progress else {"callback": None}
             coarse = form_find(coarse_net, **{**options, **shown})
         if progress:
-            progress(f"  coarse net of {coarse_net.structure.n_nodes:,} nodes: "
-                     f"{'at rest' if coarse.converged else 'not at rest'} after {coarse.relaxation.iterations} steps")
+            progress(coarse_net_outcome(coarse, time.perf_counter() - t0))
         if kind == "coarse_nurbs":
             # a B-spline height field fitted to the coarse net carries the full net's nodes
             pts = coarse.positions.copy()

@@ -202,6 +202,13 @@ def coarse_net_progress(progress: Callable[[str], None]):
     return callback
 
 
+def coarse_net_outcome(coarse: FormFindingResult, seconds: float) -> str:
+    """One line on a hung coarse net: its size, whether it came to rest, its steps and time."""
+    r = coarse.relaxation
+    return (f"  coarse net of {coarse.net.structure.n_nodes:,} nodes: {'at rest' if r.success else 'not at rest'} "
+            f"after {r.iterations} steps, {seconds:.1f} s")
+
+
 def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit",
               strain_limit: float = STRAIN_LIMIT, start: str = "auto", coarsening: int = 3,
               progress: Callable[[str], None] | None = None, **relax_options):
@@ -273,9 +280,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
             # a net that cannot be coarsened starts as a small one would
         prep = time.perf_counter() - t0
         if coarse is not None and progress is not None:
-            r = coarse.relaxation
-            progress(f"  coarse net of {coarse.net.structure.n_nodes:,} nodes: "
-                     f"{'at rest' if r.success else 'not at rest'} after {r.iterations} steps, {prep:.1f} s")
+            progress(coarse_net_outcome(coarse, prep))
         if coarse is not None and q0 is None:
             notes.append("the coarse net's force densities do not hold every free node; "
                          "started from the force-density shape instead")
