@@ -212,6 +212,5 @@ def test_the_wall_time_limit_covers_the_coarse_net(monkeypatch):
     monkeypatch.setattr(start, "coarse_net_start", slow_coarse_start)
     res = form_find(net, max_wall_time=0.2)
     assert not res.converged
-    assert res.relaxation.message.startswith("not converged within the wall-time limit of 0.2 s (")
-    assert "on the coarse nets" in res.relaxation.message
-    assert res.relaxation.iterations <= 1
+    assert "not converged within the wall-time limit of 0.2 s" in res.relaxation.message
+    assert res.relaxation.iterations <= 1 and res.relaxation.wall_time_s > 0.3

@@ -149,6 +149,17 @@ def test_progress_callback_sees_iterations_and_can_stop():
     assert res.history["iteration"][:3] == [0, 100, 200]
 
 
+def test_time_spent_before_counts_against_the_wall_time_limit():
+    system = chain(10, EA=1e4)
+    free = relax(system, scheme="implicit")
+    assert free.success and free.wall_time_s < 100.0  # far below the limit below
+    res = relax(system, scheme="implicit", max_wall_time=100.0, spent_s=100.0)
+    assert not res.success and "wall-time limit of 100 s" in res.message
+    assert res.iterations == 1 and res.wall_time_s >= 100.0
+    with pytest.raises(ModelError, match="spent_s"):
+        relax(system, spent_s=-1.0)
+
+
 def test_bad_input_is_named():
     s = Structure([[0, 0, 0], [1, 0, 0], [2, 0, 0]])
     s.add_ropes([[0, 1], [1, 2]], EA=1e3, slack=0.1)  # ropes without mass

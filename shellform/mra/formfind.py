@@ -287,15 +287,11 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     if start == "coarse_net":
         start = "auto"
     system = net.system()
-    limit = relax_options.get("max_wall_time")
-    if limit is not None and prep > 0:
-        relax_options = {**relax_options, "max_wall_time": max(limit - prep, 0.0)}
-    res = relax(system, q0, scheme=scheme, start=start, **relax_options)
-    if coarse is not None:  # the coarse net's time counts even when its start could not be used
-        res = replace(res, start="coarse_net" if q0 is not None else res.start, wall_time_s=res.wall_time_s + prep)
-        if limit is not None and "within the wall-time limit" in res.message:
-            res = replace(res, message=f"not converged within the wall-time limit of {limit:g} s "
-                                       f"({prep:.1f} s on the coarse nets, {res.iterations} iterations of the full net)")
+    # the coarse nets' time counts in the wall time and against its limit, even when their start
+    # could not be used
+    res = relax(system, q0, scheme=scheme, start=start, spent_s=prep, **relax_options)
+    if coarse is not None and q0 is not None:
+        res = replace(res, start="coarse_net")
     out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
     for w in out.warnings[len(notes):]:
         warnings.warn(w, OverstretchWarning, stacklevel=2)

@@ -789,6 +789,7 @@ def relax(
     dt: float | None = None,
     max_iterations: int | None = None,
     max_wall_time: float | None = None,
+    spent_s: float = 0.0,
     linear_solver: str = "auto",
     stiffness_continuation: bool = True,
     slack_active_set: bool = True,
@@ -834,6 +835,11 @@ def relax(
         Give up after this many steps (default 2,000,000 explicit, 500 implicit).
     max_wall_time : float, optional
         Give up after this many seconds.
+    spent_s : float
+        Seconds already spent on the same job before this call (a caller's
+        preparation, such as hanging a coarse net first): counted in the
+        result's and the progress reports' ``wall_time_s`` and against
+        ``max_wall_time``.
     linear_solver : {"auto", "cholesky", "ldl", "nd", "amg", "direct", "lu"}
         Linear solver of the implicit scheme (see :class:`_SPDSolve`).
     stiffness_continuation : bool
@@ -871,7 +877,9 @@ def relax(
         raise ModelError(f"relaxation: unknown scheme {scheme!r}; expected one of {SCHEMES}")
     if start not in START_STATES:
         raise ModelError(f"relaxation: unknown start {start!r}; expected one of {START_STATES}")
-    t0 = time.perf_counter()
+    if not (np.isfinite(spent_s) and spent_s >= 0):
+        raise ModelError(f"relaxation: spent_s must be a finite, non-negative time, got {spent_s!r}")
+    t0 = time.perf_counter() - spent_s
     st = _setup(system, q0, lam, mu, extra_mass, rtol, velocity_tol, acceleration_tol, damping, v0)
     if progress_every is None:
         progress_every = 1 if scheme == "implicit" else 2000
