@@ -10,7 +10,8 @@ from shellform import ModelError
 from shellform.geometry import rectangle_grid
 from shellform.mra import form_find, hanging_net
 from shellform.mra.coarsen import coarsened_net, structured_lines
-from shellform.mra.start import coarse_force_density_start, transferred_force_densities
+from shellform.mra.start import (MAX_DEEPENING, coarse_force_density_start, coarse_shape_start, interpolated_shape,
+                                 transferred_force_densities)
 
 SIX_POINTS = {"positions": [[0, 0], [-1, 0], [0, -1], [-1, -1], [0, 2], [-1, 2]]}
 
@@ -168,6 +169,63 @@ def test_lowered_force_densities_hang_the_start_deeper_in_proportion():
     assert as_is[:, 2].min() < -0.1
     with pytest.raises(ModelError, match="density_scale must be positive"):
         coarse_force_density_start(coarse, net, 0.0)
+
+
+def test_interpolated_shape_passes_through_the_coarse_nodes_and_is_linear_along_kept_lines():
+    # an uneven lattice: the suspension points keep the line j = 2
+    net = hanging_net(rectangle_grid(12.0, 6.0, 12, 6), SIX_POINTS, slack=0.05)
+    coarse = form_find(coarsened_net(net, 3))
+    x = interpolated_shape(coarse, net)
+    source = coarse.net.info["source"]
+    np.testing.assert_allclose(x[source], coarse.positions, atol=1e-12)
+    # on the kept line j = 2, a third of the way from the coarse node at i = 3 to the one at i = 6
+    ij = net.grid.ij
+    at = lambda i, j: int(np.flatnonzero((ij[:, 0] == i) & (ij[:, 1] == j))[0])  # noqa: E731
+    a, b = (int(np.flatnonzero(source == at(i, 2))[0]) for i in (3, 6))
+    np.testing.assert_allclose(x[at(4, 2)], (2 * coarse.positions[a] + coarse.positions[b]) / 3, atol=1e-12)
+
+
+def test_interpolated_shape_leaves_out_lattice_points_without_a_coarse_node():
+    def lattice_net(lines, ij):
+        grid = SimpleNamespace(shape=(len(lines), len(lines)), ij=np.array(ij))
+        return SimpleNamespace(grid=grid, info={"lattice": (np.array(lines), np.array(lines))})
+
+    p = np.array([[0.0, 0.0, -1.0], [2.0, 0.0, -3.0], [0.0, 2.0, -5.0]])
+    coarse = SimpleNamespace(net=lattice_net([0.0, 1.0], [[0, 0], [1, 0], [0, 1]]), positions=p)  # (1, 1) missing
+    fine = lattice_net([0.0, 0.5, 1.0], [[0, 0], [1, 0], [1, 1], [0, 1]])
+    np.testing.assert_allclose(interpolated_shape(coarse, fine), [p[0], (p[0] + p[1]) / 2, p.mean(axis=0),
+                                                                  (p[0] + p[2]) / 2], atol=1e-12)
+    # a node of the net right at the missing point gets nothing
+    assert interpolated_shape(coarse, lattice_net([0.0, 0.5, 1.0], [[0, 0], [2, 2]])) is None
+
+
+def test_coarse_shape_start_hangs_the_coarse_shape_deeper_to_the_median_strain():
+    net = hanging_net(rectangle_grid(12.0, 12.0, 12, 12), {"groups": ["boundary"]}, slack=0.05)
+    coarse = form_find(coarsened_net(net, 3))
+    x = interpolated_shape(coarse, net)
+    e, rest = net.rope_edges, net.rest_length
+
+    def median_strain(y):
+        return np.median(np.linalg.norm(y[e[:, 1]] - y[e[:, 0]], axis=1) / rest - 1)
+
+    assert median_strain(x) < 1e-4  # as interpolated, the ropes across the coarse cells are short
+    start = coarse_shape_start(coarse, net, 1e-3).reshape(-1, 3)
+    assert median_strain(start) == pytest.approx(1e-3, rel=1e-6)
+    # only the sag grows (the load is vertical, the rim level and held)
+    np.testing.assert_allclose(start[:, :2], x[:, :2], atol=1e-12)
+    np.testing.assert_array_equal(start[net.supports], net.structure.nodes[net.supports])
+    ratio = start[:, 2][x[:, 2] < -0.1] / x[:, 2][x[:, 2] < -0.1]
+    assert np.ptp(ratio) < 1e-12 and 1.0 < ratio[0] < 1.0 + MAX_DEEPENING
+    # a strain the ropes cannot reach deepens by the most allowed; one they have already, not at all
+    np.testing.assert_allclose(coarse_shape_start(coarse, net, 0.5).reshape(-1, 3)[:, 2],
+                               (1 + MAX_DEEPENING) * x[:, 2], atol=1e-12)
+    deep = SimpleNamespace(net=coarse.net, positions=coarse.positions * [1.0, 1.0, 1.5])
+    x_deep = interpolated_shape(deep, net)
+    assert median_strain(x_deep) > 1e-3
+    np.testing.assert_allclose(coarse_shape_start(deep, net, 1e-3).reshape(-1, 3), x_deep, atol=1e-12)
+    for bad in (np.nan, -1e-3):
+        with pytest.raises(ModelError, match="median_strain must be a finite number"):
+            coarse_shape_start(coarse, net, bad)
 
 
 def test_rope_stiffness_per_grid_edge_follows_the_grid_order():

@@ -227,9 +227,10 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     start : {"auto", "reference", "force_density", "coarse_net"}
         Where to start without ``q0``: the planform (``"reference"``, a flat
         start as in the MRA paper), the force-density shape
-        (``"force_density"``), or the shape in balance with the force
-        densities of the net's :func:`~shellform.mra.coarsen.coarsened_net`,
-        hung first (``"coarse_net"``; its time is counted in the wall time).
+        (``"force_density"``), or the shape of the net's
+        :func:`~shellform.mra.coarsen.coarsened_net`, hung first and
+        interpolated (``"coarse_net"``, :func:`~shellform.mra.start.coarse_shape_start`;
+        its time is counted in the wall time).
         ``"auto"``: for the implicit scheme the coarse net on nets of
         :data:`COARSE_START_NODES` nodes or more that can be coarsened
         (the coarse net then starts from its own coarse net in turn while it
@@ -282,7 +283,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         if coarse is not None and progress is not None:
             progress(coarse_net_outcome(coarse, prep))
         if coarse is not None and q0 is None:
-            notes.append("the coarse net's force densities do not hold every free node; "
+            notes.append("the coarse net does not reach every node of the net; "
                          "started from the force-density shape instead")
     if start == "coarse_net":
         start = "auto"
