@@ -201,7 +201,7 @@ def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
     The ropes on the coarse net's grid lines then have nearly their rest
     length, but the ropes in between cut across the coarse cells and come
     out slightly short: on the 100 x 100 square benchmark net, 27 % of the
-    ropes that end taut start short, the median one by 1e-4 of its length,
+    ropes that end taut start short, the median one by 9e-5 of its length,
     against an elastic strain of 4e-5. A short rope has no stiffness, so the
     relaxation would spend its steps pulling them taut one front of nodes at
     a time. The sag (the displacement from the planform along the load) is
