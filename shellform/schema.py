@@ -419,8 +419,8 @@ RELAXATION = Table(
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
                      f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
                      "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "
-                     "planform, 'force_density' the force-density shape, 'coarse_net' the shape in balance with "
-                     "the force densities of the net with every third grid line, hung first.", default="auto",
+                     "planform, 'force_density' the force-density shape, 'coarse_net' the shape of the net with "
+                     "every third grid line, hung first, interpolated and hung a little deeper.", default="auto",
                      choices=("auto", "reference", "force_density", "coarse_net")),
         "dt": Key("float", "Explicit time step (default 90 % of the stability bound) or first pseudo time step.",
                   default=None, unit="s", **_POS),
