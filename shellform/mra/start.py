@@ -25,7 +25,7 @@ from ..errors import ModelError
 from ..geometry.bspline import HeightField, basis_functions, height_field
 from ..solvers.relaxation import force_density_shape
 from .coarsen import coarsened_net, structured_lines
-from .formfind import FormFindingResult, HypostaticWarning, OverstretchWarning, form_find
+from .formfind import FormFindingResult, HypostaticWarning, OverstretchWarning, form_find, rope_state
 from .net import HangingNet
 
 #: Factor on the force densities a coarse net passes to a finer one (see :func:`coarse_force_density_start`).
@@ -127,13 +127,11 @@ def transferred_force_densities(coarse: FormFindingResult, net: HangingNet) -> n
         shape = (ni - 1, nj) if fam == 0 else (ni, nj - 1)
         u = 0.5 * (cu[:-1] + cu[1:]) if fam == 0 else cu
         v = 0.5 * (cv[:-1] + cv[1:]) if fam == 1 else cv
-        value, weight = np.zeros(shape), np.zeros(shape)
+        value, present = np.zeros(shape), np.zeros(shape, dtype=bool)
         value[c_ij[have, 0], c_ij[have, 1]] = density[have]
-        weight[c_ij[have, 0], c_ij[have, 1]] = 1.0
-        # interpolating the values and the presence alike skips the lattice points without a rope
-        num = _bilinear(u, v, value, f_mid[into])
-        den = _bilinear(u, v, weight, f_mid[into])
-        out[into] = np.where(den > 1e-12, num / np.maximum(den, 1e-12), float(np.median(density[have])))
+        present[c_ij[have, 0], c_ij[have, 1]] = True
+        field, weight = _present_bilinear(u, v, value, present, f_mid[into])
+        out[into] = np.where(weight > 1e-12, field, float(np.median(density[have])))
     out = np.maximum(out, 0.01 * float(np.median(out[out > 0]))) if np.any(out > 0) else out
     return out * net.total_weight() / cnet.total_weight()
 
@@ -180,17 +178,14 @@ def interpolated_shape(coarse: FormFindingResult, net: HangingNet) -> np.ndarray
     """
     cnet = coarse.net
     ni, nj = cnet.grid.shape
-    cu, cv = structured_lines(cnet)
     ij = cnet.grid.ij
-    value, weight = np.zeros((ni, nj, 3)), np.zeros((ni, nj))
+    value, present = np.zeros((ni, nj, 3)), np.zeros((ni, nj), dtype=bool)
     value[ij[:, 0], ij[:, 1]] = coarse.positions
-    weight[ij[:, 0], ij[:, 1]] = 1.0
+    present[ij[:, 0], ij[:, 1]] = True
     fu, fv = structured_lines(net)
     points = np.column_stack([fu[net.grid.ij[:, 0]], fv[net.grid.ij[:, 1]]])
-    den = _bilinear(cu, cv, weight, points)
-    if np.any(den <= 1e-12):
-        return None
-    return np.column_stack([_bilinear(cu, cv, value[..., d], points) for d in range(3)]) / den[:, None]
+    x, weight = _present_bilinear(*structured_lines(cnet), value, present, points)
+    return None if np.any(weight <= 1e-12) else x
 
 
 def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
@@ -228,11 +223,9 @@ def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
         return x.ravel()
     down = load / np.linalg.norm(load)
     sag = np.outer((x - ref) @ down, down)
-    e, rest = net.rope_edges, net.rest_length
 
     def strain(d):
-        y = x + d * sag
-        return float(np.median(np.linalg.norm(y[e[:, 1]] - y[e[:, 0]], axis=1) / rest - 1.0))
+        return float(np.median(rope_state(net, (x + d * sag).ravel())[1] / net.rest_length - 1.0))
 
     if strain(0.0) >= median_strain:
         d = 0.0
@@ -289,6 +282,22 @@ def _rope_lattice(net: HangingNet) -> np.ndarray:
     """Lattice index of every rope: the smaller structured position of its two ends."""
     ij = net.grid.ij[net.rope_edges]
     return ij.min(axis=1)
+
+
+def _present_bilinear(u, v, values: np.ndarray, present: np.ndarray, points: np.ndarray):
+    """Bilinear interpolation over the lattice points where ``present`` only.
+
+    Interpolating the values and the presence alike and dividing leaves the
+    absent points out. ``values`` has the lattice's shape, optionally with
+    trailing axes (interpolated one by one). Returns the interpolant at
+    ``points`` (NaN-free; meaningless where the weight is zero) and the
+    weight of the present points there.
+    """
+    weight = _bilinear(u, v, present.astype(float), points)
+    flat = values.reshape(values.shape[:2] + (-1,))
+    field = np.column_stack([_bilinear(u, v, flat[..., k], points) for k in range(flat.shape[2])])
+    field = field / np.maximum(weight, 1e-12)[:, None]
+    return field.reshape((len(points),) + values.shape[2:]), weight
 
 
 def _bilinear(u: np.ndarray, v: np.ndarray, values: np.ndarray, points: np.ndarray) -> np.ndarray:
