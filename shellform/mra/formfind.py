@@ -265,6 +265,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     if start not in START_STATES + ("coarse_net",):
         raise ModelError(f"form finding: unknown start {start!r}; expected one of {START_STATES + ('coarse_net',)}")
     prep, coarse = 0.0, None
+    system = net.system()
     by_default = start == "auto" and scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
     if q0 is None and (start == "coarse_net" or by_default):
         from .start import coarse_net_start  # start.py builds on this module
@@ -274,7 +275,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         if progress is not None:
             options.update(progress=progress, callback=coarse_net_progress(progress))
         try:
-            q0, coarse = coarse_net_start(net, coarsening, scheme=scheme, **options)
+            q0, coarse = coarse_net_start(net, coarsening, system=system, scheme=scheme, **options)
         except ModelError:
             if not by_default:
                 raise
@@ -287,7 +288,6 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
                          "started from the force-density shape instead")
     if start == "coarse_net":
         start = "auto"
-    system = net.system()
     # the coarse nets' time counts in the wall time and against its limit, even when their start
     # could not be used
     res = relax(system, q0, scheme=scheme, start=start, spent_s=prep, **relax_options)

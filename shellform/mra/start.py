@@ -188,8 +188,8 @@ def interpolated_shape(coarse: FormFindingResult, net: HangingNet) -> np.ndarray
     return None if np.any(weight <= 1e-12) else x
 
 
-def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
-                       median_strain: float = START_STRAIN) -> np.ndarray | None:
+def coarse_shape_start(coarse: FormFindingResult, net: HangingNet, median_strain: float = START_STRAIN,
+                       system=None) -> np.ndarray | None:
     """Start state of ``net``: the hanging ``coarse`` net's shape, interpolated and hung a little deeper.
 
     :func:`interpolated_shape` puts every node where the coarse net hangs.
@@ -205,6 +205,9 @@ def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
     ropes a median strain of ``median_strain``: most ropes start taut and
     the relaxation lets a taut net rise.
 
+    ``system`` is ``net.system()`` when the caller has built it already
+    (building it costs seconds on a net of 10^5 nodes).
+
     Returns
     -------
     ndarray, shape (3 n_nodes,), or None
@@ -215,7 +218,7 @@ def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
     x = interpolated_shape(coarse, net)
     if x is None:
         return None
-    system = net.system()
+    system = net.system() if system is None else system
     ref = system.q_ref.reshape(-1, 3)
     x = system.state(base=x.ravel()).reshape(-1, 3)  # held coordinates where they are held
     load = system.external_force(1.0).reshape(-1, 3).sum(axis=0)
@@ -239,7 +242,7 @@ def coarse_shape_start(coarse: FormFindingResult, net: HangingNet,
     return system.state(base=(x + d * sag).ravel())
 
 
-def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = START_STRAIN,
+def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = START_STRAIN, system=None,
                      **relax_options) -> tuple[np.ndarray | None, FormFindingResult]:
     """Hang the :func:`~shellform.mra.coarsen.coarsened_net` of ``net`` and start ``net`` from its shape.
 
@@ -250,6 +253,8 @@ def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = ST
         Coarsening factor (grid lines kept).
     median_strain : float
         Median rope strain of the start (:func:`coarse_shape_start`).
+    system : System, optional
+        ``net.system()``, if already built.
     **relax_options
         Passed to :func:`~shellform.mra.formfind.form_find` for the coarse net.
 
@@ -267,7 +272,7 @@ def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = ST
         warnings.simplefilter("ignore", HypostaticWarning)
         warnings.simplefilter("ignore", OverstretchWarning)
         coarse = form_find(cnet, **relax_options)
-    return coarse_shape_start(coarse, net, median_strain), coarse
+    return coarse_shape_start(coarse, net, median_strain, system), coarse
 
 
 def _structured_midpoints(net: HangingNet) -> np.ndarray:
