@@ -20,6 +20,8 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
   the coarse net is built from the fine one (:func:`shellform.mra.coarsen.coarsened_net`,
   every third grid line, the full weight) instead of from the benchmark's
   parameters; the default start on large nets;
+* the same scheme without the Newton sweeps around slack fronts
+  (``--no-sweep-sizes``), for the ratio they make;
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -34,6 +36,7 @@ own; runs go one after another. Prints a table and writes
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes 32 100 316]
       [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
+      [--no-sweep-sizes 32 100 316]
       [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
@@ -63,6 +66,7 @@ VARIANTS = {
     "force_density": {"scheme": "implicit", "start": "force_density"},
     "ldl": {"scheme": "implicit", "linear_solver": "ldl"},
     "plain": {"scheme": "implicit", "slack_active_set": False},
+    "no_sweeps": {"scheme": "implicit", "front_sweeps": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
     "coarse_net": {"scheme": "implicit", "start": "coarse_net"},  # form_find's own coarse net, from the net itself
@@ -104,7 +108,7 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
     row = {
         "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
         "iterations": int(r.iterations), "factorizations": int(r.factorizations),
-        "cg_iterations": int(r.linear_iterations), "residual_evaluations": int(r.residual_evaluations),
+        "cg_iterations": int(r.linear_iterations), "local_steps": int(r.local_steps), "residual_evaluations": int(r.residual_evaluations),
         "rejected_steps": int(r.rejected_steps), "wall_time_s": float(r.wall_time_s) + prep, "preparation_s": prep,
         "cpu_time_s": time.process_time() - c0, "build_s": build,
         "peak_memory_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -144,6 +148,7 @@ def main():
     ap.add_argument("--before-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--ldl-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--no-sweep-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--force-density-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32])
@@ -163,6 +168,7 @@ def main():
         rows.append(row)
         print(f"{row['nodes']:>8d} {row['variant']:>8s} {row['start']:>13s} conv={row['converged']!s:5s} "
               f"it={row['iterations']:>7d} fact={row['factorizations']:>4d} cg={row['cg_iterations']:>6d} "
+              f"local={row.get('local_steps', 0):>4d} "
               f"t={row['wall_time_s']:9.2f} s cpu={row['cpu_time_s']:9.2f} s mem={row['peak_memory_MB']:7.0f} MB "
               f"a={row['max_acceleration']:.1e}  slack={row['n_slack']}", flush=True)
 
@@ -172,7 +178,7 @@ def main():
         fast[n] = (row, pos)
         report(row)
         for variant, chosen in (("force_density", args.force_density_sizes), ("coarse", args.coarse_sizes),
-                                ("coarse_net", args.coarse_net_sizes),
+                                ("coarse_net", args.coarse_net_sizes), ("no_sweeps", args.no_sweep_sizes),
                                 ("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)
@@ -212,11 +218,12 @@ def main():
             "command": "python benchmarks/bench_mra.py " + " ".join(os.sys.argv[1:])}
     (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": exps}, indent=2,
                                                    default=float) + "\n")
-    lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | wall [s] | CPU [s] "
-             "| peak memory [MB] | max a [m/s^2] |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | local steps | wall [s] "
+             "| CPU [s] | peak memory [MB] | max a [m/s^2] |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['nodes']} | {r['variant']} ({r['scheme']}) | {r['start']} | {r['converged']} | "
-                     f"{r['iterations']} | {r['factorizations']} | {r['cg_iterations']} | {r['wall_time_s']:.2f} | "
+                     f"{r['iterations']} | {r['factorizations']} | {r['cg_iterations']} | {r.get('local_steps', 0)} | "
+                     f"{r['wall_time_s']:.2f} | "
                      f"{r['cpu_time_s']:.2f} | {r['peak_memory_MB']:.0f} | {r['max_acceleration']:.1e} |")
     if exps:
         lines += ["", "Growth exponents (fast scheme, fitted over the converged sizes): "

@@ -416,6 +416,9 @@ RELAXATION = Table(
                              choices=("auto", "cholesky", "ldl", "nd", "amg", "direct")),
         "slack_active_set": Key("bool", "Implicit scheme: solve each step again with the slack ropes it would "
                                 "stretch modelled as taut: about half the steps, each up to three solves.", default=True),
+        "front_sweeps": Key("bool", "Implicit scheme: after a step that leaves only a few nodes out of balance "
+                            "(along the fronts between taut and slack regions), take up to three Newton steps on the "
+                            "nodes within four ropes of them, the rest of the net held.", default=True),
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
                      f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
                      "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "

@@ -18,6 +18,8 @@ and stiffness while slack.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from .base import Effect, element_pattern, scatter
@@ -42,6 +44,30 @@ class _AxialMembers(Effect):
         self.dofs = np.concatenate([3 * self.conn[:, :1] + np.arange(3), 3 * self.conn[:, 1:] + np.arange(3)], axis=1)
         self._pattern = element_pattern(self.dofs)
 
+    def on_members(self, members: np.ndarray, node_index: np.ndarray, n_dof: int):
+        """The same law on some of the members, in another numbering of the nodes.
+
+        Parameters
+        ----------
+        members : ndarray of int
+            Indices of the members to keep.
+        node_index : ndarray of int
+            New number of every node of this effect's numbering (-1 where
+            unused); every end node of a kept member must have one.
+        n_dof : int
+            Size of the DOF vector of the new numbering.
+        """
+        out = copy.copy(self)
+        out.n_dof = int(n_dof)
+        out.conn = node_index[self.conn[members]]
+        if out.conn.size and out.conn.min() < 0:
+            raise ValueError("on_members: an end node of a kept member has no new number")
+        out.EA = self.EA[members]
+        out.L = self.L[members]
+        out.dofs = np.concatenate([3 * out.conn[:, :1] + np.arange(3), 3 * out.conn[:, 1:] + np.arange(3)], axis=1)
+        out._pattern = element_pattern(out.dofs)
+        return out
+
     # force law -------------------------------------------------------------
     def _active(self, length: np.ndarray) -> np.ndarray:
         """Members that carry force at this length."""
@@ -61,6 +87,26 @@ class _AxialMembers(Effect):
         _, length = self._geometry(q)
         N, k = self._force(length)
         return 0.5 * float(np.sum(k * (length - self.L) ** 2))
+
+    def energy_change(self, q0, q1) -> float:
+        """``energy(q1) - energy(q0)`` without the cancellation of two totals.
+
+        ``l1 - l0 = (x1 - x0) . (x1 + x0) / (l1 + l0)`` for the member vectors
+        ``x``, so a small change of length keeps its digits however long the
+        member; the change of ``1/2 k d^2`` (``d`` the extension) is then
+        ``1/2 k (d1 - d0)(d1 + d0)`` for a member active at both states.
+        """
+        x0 = q0[self.dofs[:, 3:]] - q0[self.dofs[:, :3]]
+        dx = (q1 - q0)[self.dofs[:, 3:]] - (q1 - q0)[self.dofs[:, :3]]
+        x1 = x0 + dx
+        l0 = np.sqrt(np.einsum("ij,ij->i", x0, x0))
+        l1 = np.sqrt(np.einsum("ij,ij->i", x1, x1))
+        a0, a1 = self._active(l0), self._active(l1)
+        d0 = np.where(a0, l0 - self.L, 0.0)
+        d1 = np.where(a1, l1 - self.L, 0.0)
+        dl = np.einsum("ij,ij->i", dx, x0 + x1) / np.maximum(l0 + l1, 1e-300)
+        diff = np.where(a0 & a1, dl, d1 - d0)
+        return 0.5 * float(np.sum((self.EA / self.L) * diff * (d1 + d0)))
 
     def gradient(self, q):
         d, length = self._geometry(q)

@@ -59,6 +59,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import ModelError
 from .linear import CholeskyFactor, SingularMatrixError, factorize
+from .patch import NodeGraph, Patch, patchable
 
 SCHEMES = ("rk4", "kinetic", "implicit")
 START_STATES = ("auto", "reference", "force_density")
@@ -129,6 +130,11 @@ class RelaxationResult:
     residual_evaluations, factorizations, rejected_steps, linear_iterations : int
         Work counters (``linear_iterations``: preconditioned CG iterations of
         the implicit scheme).
+    local_steps : int
+        Newton steps of the implicit scheme on patches around the nodes that
+        were furthest from balance, the rest of the net held
+        (:func:`_sweep_fronts`); not counted in ``iterations`` or
+        ``factorizations``.
     history : dict of lists
         ``iteration``, ``max_velocity``, ``max_acceleration``,
         ``residual_norm`` sampled every ``progress_every`` iterations.
@@ -157,6 +163,7 @@ class RelaxationResult:
     factorizations: int = 0
     rejected_steps: int = 0
     linear_iterations: int = 0
+    local_steps: int = 0
     history: dict = field(default_factory=dict)
     start: str = "reference"
 
@@ -793,6 +800,7 @@ def relax(
     linear_solver: str = "auto",
     stiffness_continuation: bool = True,
     slack_active_set: bool = True,
+    front_sweeps: bool = True,
     start: str = "auto",
     callback: Callable[[RelaxationProgress], bool | None] | None = None,
     progress_every: int | None = None,
@@ -857,6 +865,11 @@ def relax(
         cut it. On the benchmark nets the active set halves the number of
         steps but not the number of factorisations, so the wall time stays
         about the same (``benchmarks/results/bench_mra.md``).
+    front_sweeps : bool
+        Implicit scheme only: after a step that leaves only a few nodes far
+        from balance, take Newton steps on the patch of nodes around them with
+        the rest of the net held (:func:`_sweep_fronts`). Nets of axial
+        members under constant loads only; ignored otherwise.
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -896,7 +909,7 @@ def relax(
             max(int(progress_every), 1), t0)
     if scheme == "implicit":
         return _run_implicit(*args, continuation=stiffness_continuation, fd_start=fd_start,
-                             active_set=slack_active_set)
+                             active_set=slack_active_set, sweeps=front_sweeps)
     return {"rk4": _run_rk4, "kinetic": _run_kinetic}[scheme](*args)
 
 
@@ -910,6 +923,7 @@ class _Monitor:
         self.n_res = 0
         self.n_fact = 0
         self.n_cg = 0
+        self.n_local = 0
         self.rejected = 0
 
     def measure(self, v_free, r_free, a_free=None):
@@ -950,7 +964,7 @@ class _Monitor:
             velocity_tol=self.st.v_tol, acceleration_tol=self.st.a_tol, time=t, time_step=h,
             wall_time_s=time.perf_counter() - self.t0, reactions=self.system.reactions(q, self.lam),
             residual_evaluations=self.n_res, factorizations=self.n_fact, rejected_steps=self.rejected,
-            linear_iterations=self.n_cg,
+            linear_iterations=self.n_cg, local_steps=self.n_local,
             history=self.history, start=self.st.start,
         )
 
@@ -1135,8 +1149,9 @@ def _continuation_scales(system, st, lam) -> list[float]:
 
 
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True,
-                  fd_start=False, active_set=True):
+                  fd_start=False, active_set=True, sweeps=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
+    graph = NodeGraph(system) if sweeps and patchable(system) else None
     free = system.free
     solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free)
     scales = _continuation_scales(system, st, lam) if continuation else [1.0]
@@ -1157,7 +1172,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         # intermediate stages only need to land near their equilibrium
         a_tol = st.a_tol if last else max(st.a_tol, 0.1 * st.g_ref)
         v_tol = st.v_tol if last else np.inf
-        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set)
+        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set, graph)
         q, h, v, success, message, vmax, amax, rnorm = out
         mon.n_fact = solver.factorizations
         mon.n_cg = solver.cg_iterations
@@ -1169,7 +1184,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         h = min(h, np.sqrt(st.L_ref / st.g_ref))
 
 
-def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True):
+def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True, graph=None):
     """Pseudo-transient continuation on one System; returns the final state and status."""
     st = mon.st
     free = system.free
@@ -1230,7 +1245,13 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
             continue
         pred = slope + 0.5 * float(p @ (K @ p))
         tiny = abs(pred) <= e_floor
-        alpha, dE, r_try = _line_search(system, lam, residual, q, free, p, slope, rnorm, tiny)
+        def at(a, p=p):
+            qq = q.copy()
+            qq[free] += a * p
+            rr = residual(qq)
+            return energy_change(system, q, qq, lam), rr, float(rr @ p)
+
+        alpha, dE, r_try = _line_search(at, slope, rnorm, tiny)
         if alpha == 0.0:
             mon.rejected += 1
             h *= 0.25
@@ -1252,10 +1273,90 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         elif rho < 0.25:
             # a partial step is progress; only a poor quadratic model shortens the pseudo step
             h *= 0.5
+        if graph is not None:
+            mon.n_local += _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor)
         vmax, amax, rnorm = mon.measure(v, r)
         stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm, q[free], v)
         if stop:
             return q, h, v, False, stop, vmax, amax, rnorm
+
+
+#: a front sweep runs while the nodes above FRONT_LEVEL times the largest nodal
+#: acceleration are at most FRONT_SHARE of the free nodes ...
+FRONT_LEVEL = 0.3
+FRONT_SHARE = 0.01
+#: ... on the nodes within FRONT_RINGS members of them, at most FRONT_STEPS times per step
+FRONT_RINGS = 4
+FRONT_STEPS = 3
+
+
+def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
+    """Newton steps on the patches around the few nodes that hold a relaxation back.
+
+    Late in a relaxation the out-of-balance force sits at a few nodes along
+    the fronts between taut and slack regions, and a step of the whole net
+    moves such a front by about one node. While the nodes above
+    ``FRONT_LEVEL`` times the largest acceleration are few (at most
+    ``FRONT_SHARE`` of the free nodes), this takes a pseudo-time step of the
+    same form as the global one, ``(M/h^2 + C/h + K) dq = -r``, on the nodes
+    within ``FRONT_RINGS`` members of them (:class:`~shellform.solvers.patch.Patch`,
+    the rest of the net held), with the same line search on the whole net's
+    potential, so every accepted step lowers it. ``q`` and ``r`` (free DOFs)
+    are updated in place, ``r`` exactly from the patch's members. Returns the
+    number of steps taken.
+    """
+    free = system.free
+    n = graph.n_nodes
+    free_index = np.full(system.n_dof, -1, dtype=np.int64)
+    free_index[free] = np.arange(free.size)
+    n_free_nodes = np.count_nonzero(np.bincount(free // 3, minlength=n))
+    steps = 0
+    for _ in range(FRONT_STEPS):
+        acc = np.zeros(system.n_dof)
+        acc[free] = r / st.m
+        acc = np.sqrt(np.einsum("ij,ij->i", acc.reshape(n, 3), acc.reshape(n, 3)))
+        amax = float(acc.max())
+        if not amax > a_tol:
+            break
+        hot = np.flatnonzero(acc > FRONT_LEVEL * amax)
+        if hot.size > FRONT_SHARE * n_free_nodes:
+            break
+        patch = Patch(system, graph, graph.within(hot, FRONT_RINGS), f_ext)
+        if not patch.n_moving:
+            break
+        moving = patch.dofs[patch.moving]
+        ql = q[patch.dofs]
+        g0 = patch.internal_force(ql)
+        rl = (g0 - patch.f_ext)[patch.moving]
+        K = patch.tangent(ql)
+        A = K + sp.diags((1.0 / h**2 + st.damping / h) * st.m[free_index[moving]])
+        try:
+            p = CholeskyFactor(A).solve(-rl)
+        except SingularMatrixError:
+            break
+        slope = float(rl @ p)
+        if not (np.all(np.isfinite(p)) and slope < 0):
+            break
+        tiny = abs(slope + 0.5 * float(p @ (K @ p))) <= e_floor
+
+        def at(a, p=p, ql=ql, patch=patch):
+            q1 = ql.copy()
+            q1[patch.moving] += a * p
+            r1 = patch.residual(q1)
+            return patch.energy_change(ql, q1), r1, float(r1 @ p)
+
+        alpha, _, _ = _line_search(at, slope, float(np.linalg.norm(rl)), tiny)
+        if alpha == 0.0:
+            break
+        q1 = ql.copy()
+        q1[patch.moving] += alpha * p
+        q[moving] = q1[patch.moving]
+        # the residual changes only at the patch's DOFs, by its members' change of force
+        index = free_index[patch.dofs]
+        held = index >= 0
+        r[index[held]] += (patch.internal_force(q1) - g0)[held]
+        steps += 1
+    return steps
 
 
 def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds=2):
@@ -1305,53 +1406,37 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
 
 
 def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> float:
-    """``Pi(q1) - Pi(q0)`` summed member by member, without the cancellation of two totals.
+    """``Pi(q1) - Pi(q0)`` summed effect by effect, without the cancellation of two totals.
 
     The total potential is dominated by the work of the weight, so the
     difference of two totals loses the small changes a converging relaxation
-    makes. For axial members the change of ``1/2 k d^2`` (``d`` the extension)
-    uses ``l1 - l0 = (x1 - x0) . (x1 + x0) / (l1 + l0)`` of the member vectors;
-    constant forces contribute ``-f . (q1 - q0)``; other effects the
-    difference of their energies.
+    makes. Axial members give their change member by member
+    (:meth:`~shellform.effects.axial.AxialBar.energy_change`); constant
+    forces contribute ``-f . (q1 - q0)``; other effects the difference of
+    their energies.
     """
-    dq = q1 - q0
     total = 0.0
     for e in system.effects:
         factor = lam if e.scales_with_load else 1.0
         if e.is_external and hasattr(e, "force"):
-            total -= factor * float(e.force @ dq)
-        elif all(hasattr(e, a) for a in ("conn", "EA", "L", "dofs", "_active")):
-            x0 = q0[e.dofs[:, 3:]] - q0[e.dofs[:, :3]]
-            dx = dq[e.dofs[:, 3:]] - dq[e.dofs[:, :3]]
-            x1 = x0 + dx
-            l0 = np.sqrt(np.einsum("ij,ij->i", x0, x0))
-            l1 = np.sqrt(np.einsum("ij,ij->i", x1, x1))
-            a0, a1 = e._active(l0), e._active(l1)
-            d0 = np.where(a0, l0 - e.L, 0.0)
-            d1 = np.where(a1, l1 - e.L, 0.0)
-            dl = np.einsum("ij,ij->i", dx, x0 + x1) / np.maximum(l0 + l1, 1e-300)
-            diff = np.where(a0 & a1, dl, d1 - d0)
-            total += factor * 0.5 * float(np.sum((e.EA / e.L) * diff * (d1 + d0)))
+            total -= factor * float(e.force @ (q1 - q0))
+        elif hasattr(e, "energy_change"):
+            total += factor * e.energy_change(q0, q1)
         else:
             total += factor * (e.energy(q1) - e.energy(q0))
     return total
 
 
-def _line_search(system, lam, residual, q, free, p, slope, rnorm0, tiny, max_eval=12):
-    """Step length along ``p`` for the convex potential ``phi(a) = Pi(q + a p)``.
+def _line_search(at, slope, rnorm0, tiny, max_eval=12):
+    """Step length along a direction ``p`` for the convex potential ``phi(a) = Pi(q + a p)``.
 
-    The full step is taken when it lowers the potential enough (Armijo) or, at
+    ``at(a)`` returns ``(phi(a) - phi(0), r(q + a p), r(q + a p) . p)``. The
+    full step is taken when it lowers the potential enough (Armijo) or, at
     round-off level (``tiny``), lowers the residual. Otherwise the minimiser of
     ``phi`` on ``(0, 1)`` is located by regula falsi on ``phi'(a) = r(q + a p) . p``
     (increasing, since ``phi`` is convex). Returns ``(alpha, phi(alpha) - phi(0), r)``;
     alpha 0 means no decrease was found.
     """
-    def at(a):
-        qq = q.copy()
-        qq[free] += a * p
-        r = residual(qq)
-        return energy_change(system, q, qq, lam), r, float(r @ p)
-
     dE1, r1, d1 = at(1.0)
     if np.isfinite(dE1) and np.all(np.isfinite(r1)):
         if dE1 <= 1e-4 * slope or (d1 <= 0.0 and dE1 < 0.0):

@@ -1,0 +1,149 @@
+"""Newton steps on a patch of a net with the rest held: the patch problem and the sweeps around slack fronts."""
+
+import numpy as np
+import pytest
+
+import shellform.solvers.relaxation as relaxation
+from shellform.solvers.patch import NodeGraph, Patch, patchable
+from shellform.solvers.relaxation import energy_change, nodal_masses, relax
+
+from test_relaxation import small_net
+
+
+def _grid_graph(n):
+    return NodeGraph(small_net(n=n, boundary=True))
+
+
+def test_nodes_within_rings_form_a_diamond_on_a_grid():
+    n = 15
+    graph = _grid_graph(n)
+    centre = (n // 2) * n + n // 2
+    for rings in range(5):
+        nodes = graph.within([centre], rings)
+        i, j = np.divmod(nodes, n)
+        assert nodes.size == 2 * rings**2 + 2 * rings + 1
+        assert np.all(np.abs(i - n // 2) + np.abs(j - n // 2) <= rings)
+    # seeds at a corner: the ball is cut by the edges of the net
+    assert graph.within([0], 2).size == 6
+
+
+def test_members_of_nodes_are_those_with_an_end_among_them():
+    system = small_net(n=6, boundary=True)
+    graph = NodeGraph(system)
+    nodes = np.array([7, 8, 20])
+    (members,) = graph.members_of(nodes)
+    conn = system.effects[0].conn
+    expected = np.flatnonzero(np.isin(conn, nodes).any(axis=1))
+    assert np.array_equal(members, expected)
+
+
+def _state(system, iterations=2):
+    """A state part of the way to equilibrium, with slack and taut ropes."""
+    res = relax(system, max_iterations=iterations, front_sweeps=False)
+    assert not res.success
+    rope = system.effects[0]
+    slack = rope.is_slack(res.q)
+    assert slack.any() and not slack.all()
+    return res.q
+
+
+def test_patch_residual_tangent_and_energy_are_the_whole_net_s_on_the_moving_dofs():
+    system = small_net(n=9)
+    q = _state(system)
+    graph = NodeGraph(system)
+    nodes = graph.within([40, 13], 2)
+    f_ext = system.external_force()
+    patch = Patch(system, graph, nodes, f_ext)
+    moving = patch.dofs[patch.moving]
+    # the supports among the nodes do not move
+    assert set(moving) <= set(system.free)
+    assert set(moving // 3) == set(nodes) - set(system.constrained // 3)
+    ql = q[patch.dofs]
+    r = system.residual(q)
+    assert np.allclose(patch.residual(ql), r[moving], rtol=0, atol=1e-12 * np.abs(r).max())
+    K = system.tangent(q)[moving][:, moving].toarray()
+    assert np.allclose(patch.tangent(ql).toarray(), K, rtol=0, atol=1e-12 * np.abs(K).max())
+    rng = np.random.default_rng(3)
+    dq = np.zeros(system.n_dof)
+    dq[moving] = 1e-2 * rng.standard_normal(moving.size)
+    q1 = q + dq
+    assert patch.energy_change(ql, q1[patch.dofs]) == pytest.approx(system.energy(q1) - system.energy(q), rel=1e-9)
+    assert patch.energy_change(ql, q1[patch.dofs]) == pytest.approx(energy_change(system, q, q1), rel=1e-9)
+
+
+def test_patch_tangent_matches_finite_differences_of_its_residual():
+    system = small_net(n=7)
+    q = _state(system)
+    graph = NodeGraph(system)
+    patch = Patch(system, graph, graph.within([24], 2), system.external_force())
+    ql = q[patch.dofs]
+    K = patch.tangent(ql).toarray()
+    h = 1e-7
+    fd = np.empty_like(K)
+    for k, dof in enumerate(patch.moving):
+        qp, qm = ql.copy(), ql.copy()
+        qp[dof] += h
+        qm[dof] -= h
+        fd[:, k] = (patch.residual(qp) - patch.residual(qm)) / (2 * h)
+    assert np.allclose(K, fd, rtol=1e-5, atol=1e-6 * np.abs(K).max())
+
+
+def test_a_patch_of_axial_members_keeps_their_law():
+    system = small_net(n=5)
+    rope = system.effects[0]
+    keep = np.array([0, 3, 7])
+    index = np.full(25, -1)
+    ends = np.unique(rope.conn[keep])
+    index[ends] = np.arange(ends.size)
+    sub = rope.on_members(keep, index, 3 * ends.size)
+    q = system.q_ref + 0.05 * np.random.default_rng(0).standard_normal(system.n_dof)
+    ql = q[(3 * ends[:, None] + np.arange(3)).ravel()]
+    assert type(sub) is type(rope)
+    assert np.allclose(sub.member_results(ql)["axial_force"], rope.member_results(q)["axial_force"][keep])
+    with pytest.raises(ValueError, match="no new number"):
+        rope.on_members(keep, np.full(25, -1), 3)
+
+
+def test_a_sweep_lowers_the_potential_moves_only_the_patch_and_keeps_the_residual_exact(monkeypatch):
+    system = small_net(n=9)
+    q = _state(system)
+    monkeypatch.setattr(relaxation, "FRONT_SHARE", 1.0)  # sweep whatever the share of hot nodes
+    graph = NodeGraph(system)
+    free = system.free
+    st_m = np.repeat(nodal_masses(system), 3)[free]
+    st = type("St", (), {"m": st_m, "damping": 0.0})()
+    r = system.residual(q)[free]
+    q1 = q.copy()
+    steps = relaxation._sweep_fronts(system, graph, st, q1, r, 1e3, system.external_force(), 0.0, 0.0)
+    assert steps == relaxation.FRONT_STEPS
+    assert energy_change(system, q, q1) < 0
+    assert np.allclose(r, system.residual(q1)[free], rtol=0, atol=1e-9 * np.abs(r).max())
+    # the supports are where they were
+    assert np.array_equal(q1[system.constrained], q[system.constrained])
+
+
+def test_relaxation_with_sweeps_reaches_the_same_shape(monkeypatch):
+    system = small_net(n=12, EA=1e5)
+    plain = relax(system, rtol=1e-9, front_sweeps=False)
+    monkeypatch.setattr(relaxation, "FRONT_SHARE", 0.3)  # a small net's fronts are a large share of it
+    swept = relax(system, rtol=1e-9)
+    assert plain.success and swept.success, (plain.message, swept.message)
+    assert plain.local_steps == 0 and swept.local_steps > 0
+    assert np.max(np.abs(swept.q - plain.q)) < 1e-7
+
+
+def test_sweeps_are_left_out_where_a_patch_cannot_hold_the_energy():
+    from shellform.rods.network import build_rod_system
+
+    from test_implicit_euler import cantilever
+
+    _, rod = cantilever(n=6)
+    assert not patchable(build_rod_system(rod))  # bending and twist are not axial members
+    assert patchable(small_net(n=4))
+
+
+def test_a_scene_can_turn_the_sweeps_off():
+    from shellform.mra.case import _merge, _solver_options
+
+    assert _solver_options(_merge({}), None)["front_sweeps"] is True
+    assert _solver_options(_merge({"solver": {"front_sweeps": False}}), None)["front_sweeps"] is False
