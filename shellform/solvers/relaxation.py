@@ -31,16 +31,19 @@ Three schemes reach that rest state; ``scheme`` selects one:
     potential falls as the quadratic model predicts, and the pseudo time step
     grows; when it grows without bound the step is Newton's method and
     convergence is quadratic. The mass term keeps the matrix positive definite
-    while ropes are slack (a slack rope has no stiffness). Four devices make
+    while ropes are slack (a slack rope has no stiffness). Five devices make
     it fast on nets of nearly inextensible ropes: a start from the
     force-density shape (one scalar linear solve, :func:`force_density_start`)
     instead of the flat planform, so the net does not have to fall into its
     shape; a continuation in the rope stiffness (soft ropes first, ten times
     stiffer per stage, the true EA last); a line search on the potential
     along each step (its changes summed member by member, so they stay
-    accurate near equilibrium); and conjugate gradients preconditioned by the
-    factor of an earlier step, refactorising only when they stall (sparse
-    LDL^T; SuperLU in nested-dissection order on request).
+    accurate near equilibrium); conjugate gradients preconditioned by the
+    factor of an earlier step, refactorising only when they stall (CHOLMOD's
+    supernodal Cholesky; LDL^T or SuperLU in nested-dissection order on
+    request); and, once only a few nodes along the fronts between taut and
+    slack regions are far from balance, Newton steps on the patches around
+    them with the rest of the net held (:func:`_sweep_fronts`).
 
 All three stop on the same test (nodal velocity and acceleration below the
 tolerances) and reach the same equilibrium: the minimum of the potential.
@@ -869,7 +872,8 @@ def relax(
         Implicit scheme only: after a step that leaves only a few nodes far
         from balance, take Newton steps on the patch of nodes around them with
         the rest of the net held (:func:`_sweep_fronts`). Nets of axial
-        members under constant loads only; ignored otherwise.
+        members under constant loads only, and with ``slack_active_set``;
+        ignored otherwise.
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -1151,7 +1155,9 @@ def _continuation_scales(system, st, lam) -> list[float]:
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True,
                   fd_start=False, active_set=True, sweeps=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
-    graph = NodeGraph(system) if sweeps and patchable(system) else None
+    # without the active set a step of the whole net overshoots where it pulls slack ropes
+    # taut, and the patches' steps, taken from there, only add to it (docs/theory-mra.md)
+    graph = NodeGraph(system) if sweeps and active_set and patchable(system) else None
     free = system.free
     solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free)
     scales = _continuation_scales(system, st, lam) if continuation else [1.0]
@@ -1266,13 +1272,16 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         K = None
         total["t"] += h
         total["it"] += 1
-        if alpha == 1.0 and (rho > 0.75 or tiny):
+        model_exact = alpha == 1.0 and (rho > 0.75 or tiny)
+        if model_exact:
             h = min(4.0 * h, h_max)
         elif alpha < 0.1:
             h *= 0.25
         elif rho < 0.25:
             # a partial step is progress; only a poor quadratic model shortens the pseudo step
             h *= 0.5
+        # only the tail of a converging stage has its imbalance at a few fronts; while the
+        # whole net's model is poor, local steps only move the net where it will not stay
         if graph is not None:
             mon.n_local += _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor)
         vmax, amax, rnorm = mon.measure(v, r)
@@ -1301,9 +1310,11 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
     same form as the global one, ``(M/h^2 + C/h + K) dq = -r``, on the nodes
     within ``FRONT_RINGS`` members of them (:class:`~shellform.solvers.patch.Patch`,
     the rest of the net held), with the same line search on the whole net's
-    potential, so every accepted step lowers it. ``q`` and ``r`` (free DOFs)
-    are updated in place, ``r`` exactly from the patch's members. Returns the
-    number of steps taken.
+    potential, so every accepted step lowers it. A step after which the
+    largest acceleration has not fallen is undone and ends the sweep: its
+    patch has set up ropes that the next step of the whole net would have to
+    undo. ``q`` and ``r`` (free DOFs) are updated in place, ``r`` exactly
+    from the patch's members. Returns the number of steps kept.
     """
     free = system.free
     n = graph.n_nodes
@@ -1311,13 +1322,24 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
     free_index[free] = np.arange(free.size)
     n_free_nodes = np.count_nonzero(np.bincount(free // 3, minlength=n))
     steps = 0
-    for _ in range(FRONT_STEPS):
+    undo = None
+    a_last = np.inf
+    for _ in range(FRONT_STEPS + 1):
         acc = np.zeros(system.n_dof)
         acc[free] = r / st.m
         acc = np.sqrt(np.einsum("ij,ij->i", acc.reshape(n, 3), acc.reshape(n, 3)))
         amax = float(acc.max())
-        if not amax > a_tol:
+        if undo is not None and not amax < a_last:
+            # the potential fell, but the imbalance grew: the patch's step set up ropes
+            # the next step of the whole net would have to undo
+            moving, q_old, index, r_old = undo
+            q[moving] = q_old
+            r[index] = r_old
+            steps -= 1
             break
+        if steps == FRONT_STEPS or not amax > a_tol:
+            break
+        a_last = amax
         hot = np.flatnonzero(acc > FRONT_LEVEL * amax)
         if hot.size > FRONT_SHARE * n_free_nodes:
             break
@@ -1350,11 +1372,12 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
             break
         q1 = ql.copy()
         q1[patch.moving] += alpha * p
-        q[moving] = q1[patch.moving]
         # the residual changes only at the patch's DOFs, by its members' change of force
         index = free_index[patch.dofs]
-        held = index >= 0
-        r[index[held]] += (patch.internal_force(q1) - g0)[held]
+        index = index[index >= 0]
+        undo = (moving, q[moving].copy(), index, r[index].copy())
+        q[moving] = q1[patch.moving]
+        r[index] += (patch.internal_force(q1) - g0)[free_index[patch.dofs] >= 0]
         steps += 1
     return steps
 
