@@ -1272,16 +1272,13 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         K = None
         total["t"] += h
         total["it"] += 1
-        model_exact = alpha == 1.0 and (rho > 0.75 or tiny)
-        if model_exact:
+        if alpha == 1.0 and (rho > 0.75 or tiny):
             h = min(4.0 * h, h_max)
         elif alpha < 0.1:
             h *= 0.25
         elif rho < 0.25:
             # a partial step is progress; only a poor quadratic model shortens the pseudo step
             h *= 0.5
-        # only the tail of a converging stage has its imbalance at a few fronts; while the
-        # whole net's model is poor, local steps only move the net where it will not stay
         if graph is not None:
             mon.n_local += _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor)
         vmax, amax, rnorm = mon.measure(v, r)
