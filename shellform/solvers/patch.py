@@ -36,10 +36,20 @@ class NodeGraph:
 
     The incidences do not depend on the state or on the members' stiffness, so
     one graph serves every stiffness stage of a relaxation.
+
+    Attributes
+    ----------
+    free_index : ndarray (n_dof,)
+        Position of each DOF among the System's free DOFs, -1 where constrained.
+    n_free_nodes : int
+        Nodes with at least one free DOF.
     """
 
     def __init__(self, system):
         self.n_nodes = system.n_dof // 3
+        self.free_index = np.full(system.n_dof, -1, dtype=np.int64)
+        self.free_index[system.free] = np.arange(system.free.size)
+        self.n_free_nodes = int(np.count_nonzero(np.bincount(system.free // 3, minlength=self.n_nodes)))
         axial = [e for e in system.effects if _axial(e)]
         conn = np.concatenate([e.conn for e in axial])
         a, b = conn[:, 0], conn[:, 1]
@@ -116,11 +126,7 @@ class Patch:
         n_dof = 3 * ends.size
         self.effects = [e.on_members(m, index, n_dof) for e, m in zip(axial, members)]
         self.dofs = (3 * ends[:, None] + np.arange(3)).ravel()
-        on_patch = np.zeros(graph.n_nodes, dtype=bool)
-        on_patch[nodes] = True
-        free = np.zeros(system.n_dof, dtype=bool)
-        free[system.free] = True
-        self.moving = np.flatnonzero(np.repeat(on_patch[ends], 3) & free[self.dofs])
+        self.moving = np.flatnonzero(np.repeat(np.isin(ends, nodes), 3) & (graph.free_index[self.dofs] >= 0))
         self.f_ext = f_ext[self.dofs]
         # the tangent on the moving DOFs, with the diagonal always present
         local = np.full(n_dof, -1, dtype=np.int64)

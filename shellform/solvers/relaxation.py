@@ -1315,9 +1315,7 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
     """
     free = system.free
     n = graph.n_nodes
-    free_index = np.full(system.n_dof, -1, dtype=np.int64)
-    free_index[free] = np.arange(free.size)
-    n_free_nodes = np.count_nonzero(np.bincount(free // 3, minlength=n))
+    free_index = graph.free_index
     steps = 0
     undo = None
     a_last = np.inf
@@ -1338,7 +1336,7 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
             break
         a_last = amax
         hot = np.flatnonzero(acc > FRONT_LEVEL * amax)
-        if hot.size > FRONT_SHARE * n_free_nodes:
+        if hot.size > FRONT_SHARE * graph.n_free_nodes:
             break
         patch = Patch(system, graph, graph.within(hot, FRONT_RINGS), f_ext)
         if not patch.n_moving:
@@ -1371,10 +1369,11 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
         q1[patch.moving] += alpha * p
         # the residual changes only at the patch's DOFs, by its members' change of force
         index = free_index[patch.dofs]
-        index = index[index >= 0]
+        held = index >= 0
+        index = index[held]
         undo = (moving, q[moving].copy(), index, r[index].copy())
         q[moving] = q1[patch.moving]
-        r[index] += (patch.internal_force(q1) - g0)[free_index[patch.dofs] >= 0]
+        r[index] += (patch.internal_force(q1) - g0)[held]
         steps += 1
     return steps
 
