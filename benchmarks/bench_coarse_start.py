@@ -76,25 +76,44 @@ def _run(name: str, n: int, start: str, out_q) -> None:
                "rise": float(res.rise), "n_slack": int(res.slack.sum())})
 
 
-def run(name: str, n: int, start: str) -> dict:
+def in_own_process(target, *args) -> dict:
+    """``target(*args, queue)`` in a forked child (its memory and time its own); what it put on the queue."""
     ctx = mp.get_context("fork")
     q = ctx.Queue()
-    p = ctx.Process(target=_run, args=(name, n, start, q))
+    p = ctx.Process(target=target, args=(*args, q))
     p.start()
     row = q.get()
     p.join()
     return row
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def net_arguments(description: str) -> argparse.Namespace:
+    """The command line shared by the benchmarks over these nets: ``--n``, ``--nets``, ``--out``."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--n", type=int, default=100, help="rope intervals per side (square and circles)")
     ap.add_argument("--nets", nargs="*", default=NETS)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def write_results(args, name: str, rows: list[dict], table: list[str]) -> None:
+    """``<name>[_nN].json`` with the rows and ``.md`` with ``table``, the command and the load average."""
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {"command": f"python benchmarks/{name}.py " + " ".join(sys.argv[1:]),
+            "load_average_at_end": os.getloadavg()}
+    stem = name if args.n == 100 else f"{name}_n{args.n}"
+    (out / f"{stem}.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2) + "\n")
+    lines = table + ["", f"Command: `{meta['command']}`. Load average at the end: "
+                     f"{', '.join(f'{v:.2f}' for v in meta['load_average_at_end'])} (2 cores, shared)."]
+    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
+
+
+def main():
+    args = net_arguments(__doc__.splitlines()[0])
     rows = []
     for name in args.nets:
-        pair = [run(name, args.n, start) for start in ("force_density", "shape")]
+        pair = [in_own_process(_run, name, args.n, start) for start in ("force_density", "shape")]
         pair[1]["time_ratio_to_force_density"] = (pair[1]["start_and_relaxation_s"]
                                                   / pair[0]["start_and_relaxation_s"])
         for r in pair:
@@ -103,21 +122,12 @@ def main():
                   f"it={r['iterations']:>4d} fact={r['factorizations']:>4d} "
                   f"t={r['start_and_relaxation_s']:8.2f} s (coarse net {r['coarse_s']:.2f} s) rise={r['rise']:.6f}",
                   flush=True)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    meta = {"command": "python benchmarks/bench_coarse_start.py " + " ".join(sys.argv[1:]),
-            "load_average_at_end": os.getloadavg()}
-    stem = "bench_coarse_start" if args.n == 100 else f"bench_coarse_start_n{args.n}"
-    (out / f"{stem}.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2) + "\n")
-    lines = ["| net | nodes | start | converged | steps | factorisations | start + relaxation [s] | coarse net [s] |",
+    table = ["| net | nodes | start | converged | steps | factorisations | start + relaxation [s] | coarse net [s] |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['net']} | {r['nodes']} | {r['start']} | {r['converged']} | {r['iterations']} | "
+        table.append(f"| {r['net']} | {r['nodes']} | {r['start']} | {r['converged']} | {r['iterations']} | "
                      f"{r['factorizations']} | {r['start_and_relaxation_s']:.2f} | {r['coarse_s']:.2f} |")
-    lines += ["", f"Command: `{meta['command']}`. Load average at the end: "
-              f"{', '.join(f'{v:.2f}' for v in meta['load_average_at_end'])} (2 cores, shared)."]
-    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
-
+    write_results(args, "bench_coarse_start", rows, table)
 
 if __name__ == "__main__":
     main()

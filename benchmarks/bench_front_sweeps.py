@@ -20,16 +20,13 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # many small BLAS calls: threads only add overhead
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import multiprocessing as mp  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_coarse_start import NETS, ROOT, make_net  # noqa: E402
+from bench_coarse_start import in_own_process, make_net, net_arguments, write_results  # noqa: E402
 
 #: (slack active set, front sweeps)
 VARIANTS = [(True, True), (True, False), (False, True), (False, False)]
@@ -75,47 +72,24 @@ def _run(name: str, n: int, active: bool, sweeps: bool, out_q) -> None:
                "max_acceleration": float(r.max_acceleration)})
 
 
-def run(name: str, n: int, active: bool, sweeps: bool) -> dict:
-    ctx = mp.get_context("fork")
-    q = ctx.Queue()
-    p = ctx.Process(target=_run, args=(name, n, active, sweeps, q))
-    p.start()
-    row = q.get()
-    p.join()
-    return row
-
-
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--n", type=int, default=100, help="rope intervals per side (square and circles)")
-    ap.add_argument("--nets", nargs="*", default=NETS)
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = ap.parse_args()
+    args = net_arguments(__doc__.splitlines()[0])
     rows = []
     for name in args.nets:
         for active, sweeps in VARIANTS:
-            r = run(name, args.n, active, sweeps)
+            r = in_own_process(_run, name, args.n, active, sweeps)
             rows.append(r)
             print(f"{r['net']:>14s} {r['nodes']:>8d} active={active!s:5s} sweeps={sweeps!s:5s} "
                   f"conv={r['converged']!s:5s} it={r['iterations']:>4d} fact={r['factorizations']:>4d} "
                   f"local={r['local_steps']:>4d} t={r['wall_time_s']:8.2f} s (sweeps {r['sweep_s']:.2f} s)",
                   flush=True)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    meta = {"command": "python benchmarks/bench_front_sweeps.py " + " ".join(sys.argv[1:]),
-            "load_average_at_end": os.getloadavg()}
-    stem = "bench_front_sweeps" if args.n == 100 else f"bench_front_sweeps_n{args.n}"
-    (out / f"{stem}.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2) + "\n")
-    lines = ["| net | nodes | active set | front sweeps | converged | steps | factorisations | patch steps "
+    table = ["| net | nodes | active set | front sweeps | converged | steps | factorisations | patch steps "
              "| relaxation [s] | of it in sweeps [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['net']} | {r['nodes']} | {r['active_set']} | {r['front_sweeps']} | {r['converged']} | "
+        table.append(f"| {r['net']} | {r['nodes']} | {r['active_set']} | {r['front_sweeps']} | {r['converged']} | "
                      f"{r['iterations']} | {r['factorizations']} | {r['local_steps']} | {r['wall_time_s']:.2f} | "
                      f"{r['sweep_s']:.2f} |")
-    lines += ["", f"Command: `{meta['command']}`. Load average at the end: "
-              f"{', '.join(f'{v:.2f}' for v in meta['load_average_at_end'])} (2 cores, shared)."]
-    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
-
+    write_results(args, "bench_front_sweeps", rows, table)
 
 if __name__ == "__main__":
     main()
