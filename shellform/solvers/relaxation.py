@@ -223,12 +223,17 @@ def node_stiffness_bound(system, q: np.ndarray) -> np.ndarray:
     return S
 
 
-def _nodal_max(system, x_free: np.ndarray) -> float:
-    """Largest Euclidean norm over nodes of a free-DOF vector."""
+def _nodal_norms(system, x_free: np.ndarray) -> np.ndarray:
+    """Euclidean norm at every node of a free-DOF vector (zero at held nodes)."""
     full = np.zeros(system.n_dof)
     full[system.free] = x_free
-    n = system.structure.n_nodes
-    return float(np.sqrt(np.max(np.einsum("ij,ij->i", full.reshape(n, 3), full.reshape(n, 3)))))
+    full = full.reshape(-1, 3)
+    return np.sqrt(np.einsum("ij,ij->i", full, full))
+
+
+def _nodal_max(system, x_free: np.ndarray) -> float:
+    """Largest Euclidean norm over nodes of a free-DOF vector."""
+    return float(_nodal_norms(system, x_free).max())
 
 
 @dataclass
@@ -1313,16 +1318,12 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
     undo. ``q`` and ``r`` (free DOFs) are updated in place, ``r`` exactly
     from the patch's members. Returns the number of steps kept.
     """
-    free = system.free
-    n = graph.n_nodes
     free_index = graph.free_index
     steps = 0
     undo = None
     a_last = np.inf
     for _ in range(FRONT_STEPS + 1):
-        acc = np.zeros(system.n_dof)
-        acc[free] = r / st.m
-        acc = np.sqrt(np.einsum("ij,ij->i", acc.reshape(n, 3), acc.reshape(n, 3)))
+        acc = _nodal_norms(system, r / st.m)
         amax = float(acc.max())
         if undo is not None and not amax < a_last:
             # the potential fell, but the imbalance grew: the patch's step set up ropes
