@@ -62,6 +62,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import ModelError
 from .linear import CholeskyFactor, SingularMatrixError, factorize
+from .local_correction import LocalCorrection
 from .patch import NodeGraph, Patch, patchable
 
 SCHEMES = ("rk4", "kinetic", "implicit")
@@ -516,6 +517,14 @@ class _SPDSolve:
     316 x 316 net 120 of 164 attempts failed, each after five iterations
     costing 0.35 s beside a 0.8 s factorisation.
 
+    The old factor is corrected where the matrix has changed since it was
+    made (``correct``, :class:`~shellform.solvers.local_correction.LocalCorrection`):
+    ropes pulled taut or gone slack change their blocks by about their whole
+    size, each such rope is an outlying eigenvalue for the old factor alone,
+    and an exact solve on the nodes around them takes those out. When the
+    changed nodes are too many (a new stiffness stage changes every entry)
+    the matrix is factorised without an attempt.
+
     ``"cholesky"`` (what ``"auto"`` means) is CHOLMOD's supernodal Cholesky
     (:class:`~shellform.solvers.linear.CholeskyFactor`) with its analysis
     kept for the fixed pattern: ``K + sigma M`` is positive definite here, so
@@ -544,7 +553,7 @@ class _SPDSolve:
     """
 
     def __init__(self, method: str, n: int, reuse: bool = True, cg_max: int | None = None,
-                 coords: np.ndarray | None = None, dofs: np.ndarray | None = None):
+                 coords: np.ndarray | None = None, dofs: np.ndarray | None = None, correct: bool = True):
         if method == "auto":
             method = "cholesky"
         if method == "nd" and coords is None:
@@ -567,6 +576,10 @@ class _SPDSolve:
         self._t_iteration = None
         self.success_rate = 1.0  # running estimate that an attempt with the old factor converges
         self._passed = 0  # solves since the last attempt
+        self.correct = correct
+        self._kept = None  # the factorised matrix's values, in the order of its pattern
+        self._correction = None
+        self.corrected = 0  # attempts whose preconditioner was corrected on a changed region
 
     @property
     def iteration_budget(self) -> int:
@@ -640,6 +653,28 @@ class _SPDSolve:
         self.factorizations += 1
         self._ready = True
         self._t_factor = time.perf_counter() - t0
+        if self.correct and self.method != "amg":
+            self._keep(A)
+
+    def _keep(self, A: sp.csr_matrix) -> None:
+        """Remember the factorised values, to find later where a matrix has changed from them."""
+        if self._correction is None or not self._correction.fits(A):
+            try:
+                # three DOFs to a node (rope nets); for other layouts the groups are only coarser or finer
+                node_of = np.unique(self.dofs // 3, return_inverse=True)[1]
+                self._correction = LocalCorrection(A, node_of) if node_of.size == A.shape[0] else None
+            except ValueError:
+                self._correction = None
+        self._kept = A.data.copy() if self._correction is not None else None
+
+    def _attempt_preconditioner(self, A: sp.csr_matrix):
+        """The old factor, corrected where ``A`` changed from it; None when a refactorisation is due."""
+        if self._kept is None or not self._correction.fits(A):
+            return self._precondition
+        prec = self._correction.preconditioner(A, self._kept, self._precondition)
+        if prec is not None and prec is not self._precondition:
+            self.corrected += 1
+        return prec
 
     def _precondition(self, b: np.ndarray) -> np.ndarray:
         if self.method == "ldl":
@@ -656,9 +691,10 @@ class _SPDSolve:
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray:
         """Solve ``A x = b`` to relative residual ``rtol`` (or exactly after a refactorisation)."""
-        if self._worth_an_attempt():
+        prec = self._attempt_preconditioner(A) if self._worth_an_attempt() else None
+        if prec is not None:
             t0 = time.perf_counter()
-            x, ok, its = _pcg(A, b, self._precondition, rtol, self.iteration_budget)
+            x, ok, its = _pcg(A, b, prec, rtol, self.iteration_budget)
             self.cg_iterations += its
             self.success_rate = 0.7 * self.success_rate + 0.3 * float(ok)
             if its:
