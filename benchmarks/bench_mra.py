@@ -22,6 +22,8 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
   parameters; the default start on large nets;
 * the same scheme without the Newton sweeps around slack fronts
   (``--no-sweep-sizes``), for the ratio they make;
+* the same scheme without the kept factor's correction on the nodes whose
+  tangent entries changed (``--uncorrected-sizes``), for the ratio it makes;
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -36,7 +38,7 @@ own; runs go one after another. Prints a table and writes
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes 32 100 316]
       [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
-      [--no-sweep-sizes 32 100 316]
+      [--no-sweep-sizes 32 100 316] [--uncorrected-sizes 32 100 316]
       [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
@@ -67,6 +69,7 @@ VARIANTS = {
     "ldl": {"scheme": "implicit", "linear_solver": "ldl"},
     "plain": {"scheme": "implicit", "slack_active_set": False},
     "no_sweeps": {"scheme": "implicit", "front_sweeps": False},
+    "uncorrected": {"scheme": "implicit", "factor_correction": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
     "coarse_net": {"scheme": "implicit", "start": "coarse_net"},  # form_find's own coarse net, from the net itself
@@ -108,7 +111,8 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
     row = {
         "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
         "iterations": int(r.iterations), "factorizations": int(r.factorizations),
-        "cg_iterations": int(r.linear_iterations), "local_steps": int(r.local_steps), "residual_evaluations": int(r.residual_evaluations),
+        "cg_iterations": int(r.linear_iterations), "local_steps": int(r.local_steps),
+        "corrected_solves": int(r.corrected_solves), "residual_evaluations": int(r.residual_evaluations),
         "rejected_steps": int(r.rejected_steps), "wall_time_s": float(r.wall_time_s) + prep, "preparation_s": prep,
         "cpu_time_s": time.process_time() - c0, "build_s": build,
         "peak_memory_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -149,12 +153,15 @@ def main():
     ap.add_argument("--ldl-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--no-sweep-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--uncorrected-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--force-density-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32])
     ap.add_argument("--explicit-sizes", type=int, nargs="*", default=[16, 32])
     ap.add_argument("--explicit-wall", type=float, default=300.0)
     ap.add_argument("--million", action="store_true", help="also try 1000 x 1000 nodes")
+    ap.add_argument("--skip-fast", action="store_true",
+                    help="run only the chosen variants at --sizes (one long run of a variant, joined later with --add-rows)")
     ap.add_argument("--wall", type=float, default=None, help="wall-time limit of each implicit run [s]")
     ap.add_argument("--verbose", action="store_true", help="print every implicit step to stderr")
     ap.add_argument("--add-rows", nargs="*", default=[],
@@ -168,22 +175,25 @@ def main():
         rows.append(row)
         print(f"{row['nodes']:>8d} {row['variant']:>8s} {row['start']:>13s} conv={row['converged']!s:5s} "
               f"it={row['iterations']:>7d} fact={row['factorizations']:>4d} cg={row['cg_iterations']:>6d} "
-              f"local={row.get('local_steps', 0):>4d} "
+              f"local={row.get('local_steps', 0):>4d} corr={row.get('corrected_solves', 0):>4d} "
               f"t={row['wall_time_s']:9.2f} s cpu={row['cpu_time_s']:9.2f} s mem={row['peak_memory_MB']:7.0f} MB "
               f"a={row['max_acceleration']:.1e}  slack={row['n_slack']}", flush=True)
 
     fast = {}
     for n in sizes:
-        row, pos = run(n, "fast", args.wall, args.verbose)
-        fast[n] = (row, pos)
-        report(row)
+        row, pos = (None, None) if args.skip_fast else run(n, "fast", args.wall, args.verbose)
+        if row is not None:
+            fast[n] = (row, pos)
+            report(row)
         for variant, chosen in (("force_density", args.force_density_sizes), ("coarse", args.coarse_sizes),
                                 ("coarse_net", args.coarse_net_sizes), ("no_sweeps", args.no_sweep_sizes),
+                                ("uncorrected", args.uncorrected_sizes),
                                 ("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)
-                row_b["shape_difference"] = float(np.abs(pos_b - pos).max())
-                row_b["time_ratio_to_fast"] = row_b["wall_time_s"] / row["wall_time_s"]
+                if row is not None:
+                    row_b["shape_difference"] = float(np.abs(pos_b - pos).max())
+                    row_b["time_ratio_to_fast"] = row_b["wall_time_s"] / row["wall_time_s"]
                 report(row_b)
     for n in sorted(set(args.explicit_sizes)):
         if n not in fast:
@@ -218,11 +228,13 @@ def main():
             "command": "python benchmarks/bench_mra.py " + " ".join(os.sys.argv[1:])}
     (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": exps}, indent=2,
                                                    default=float) + "\n")
-    lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | local steps | wall [s] "
-             "| CPU [s] | peak memory [MB] | max a [m/s^2] |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | corrected solves "
+             "| local steps | wall [s] | CPU [s] | peak memory [MB] | max a [m/s^2] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['nodes']} | {r['variant']} ({r['scheme']}) | {r['start']} | {r['converged']} | "
-                     f"{r['iterations']} | {r['factorizations']} | {r['cg_iterations']} | {r.get('local_steps', 0)} | "
+                     f"{r['iterations']} | {r['factorizations']} | {r['cg_iterations']} | "
+                     f"{r.get('corrected_solves', '-')} | {r.get('local_steps', 0)} | "
                      f"{r['wall_time_s']:.2f} | "
                      f"{r['cpu_time_s']:.2f} | {r['peak_memory_MB']:.0f} | {r['max_acceleration']:.1e} |")
     if exps:

@@ -29,6 +29,8 @@ CHANGE = 0.3
 RINGS = 3
 #: ... as long as that is at most this share of the nodes; beyond it a new factorisation is due
 MOST_SHARE = 0.25
+#: entries compared at a time
+CHUNK = 1 << 22
 
 
 class LocalCorrection:
@@ -45,15 +47,23 @@ class LocalCorrection:
     def __init__(self, A: sp.csr_matrix, node_of: np.ndarray):
         self.indptr = A.indptr.copy()
         self.indices = A.indices.copy()
-        self.rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+        # int32 where it fits: these arrays are as long as the pattern (6e7 entries at 10^6 nodes)
+        index = np.int32 if A.nnz < 2**31 else np.int64
+        self.rows = np.repeat(np.arange(A.shape[0], dtype=index), np.diff(A.indptr))
         self.diag = np.flatnonzero(self.rows == self.indices)
         if self.diag.size != A.shape[0]:
             raise ValueError("local correction: the pattern lacks diagonal entries")
-        self.node_of = np.asarray(node_of)
+        self.node_of = np.asarray(node_of, dtype=index)
         n_nodes = int(self.node_of.max()) + 1 if self.node_of.size else 0
-        link = sp.csr_matrix((np.ones(self.rows.size), (self.node_of[self.rows], self.node_of[self.indices])),
+        # a node's rows share their neighbours, so the first row of each node gives the node graph
+        first = np.zeros(A.shape[0], dtype=bool)
+        first[np.unique(self.node_of, return_index=True)[1]] = True
+        sub = A[first]  # its stored entries, the slack ropes' exact zeros included
+        rows, cols = np.repeat(np.arange(sub.shape[0]), np.diff(sub.indptr)), sub.indices
+        link = sp.csr_matrix((np.ones(rows.size, dtype=np.int8), (self.node_of[first][rows], self.node_of[cols])),
                              shape=(n_nodes, n_nodes))
-        self.graph = (link != 0).astype(np.int8).tocsr()
+        link.data[:] = 1
+        self.graph = link
         self.n_nodes = n_nodes
 
     def fits(self, A: sp.csr_matrix) -> bool:
@@ -69,11 +79,13 @@ class LocalCorrection:
         slack changes its blocks by about their whole size, a settling net by
         a small share of them.
         """
-        d = np.abs(data[self.diag])
-        scale = np.sqrt(d[self.rows] * d[self.indices])
-        changed = np.abs(data - kept) > CHANGE * scale
+        root = np.sqrt(np.abs(data[self.diag]))
         nodes = np.zeros(self.n_nodes, dtype=bool)
-        nodes[self.node_of[self.rows[changed]]] = True
+        for start in range(0, data.size, CHUNK):  # in pieces: whole-pattern temporaries would cost GBs
+            part = slice(start, start + CHUNK)
+            rows = self.rows[part]
+            changed = np.abs(data[part] - kept[part]) > CHANGE * root[rows] * root[self.indices[part]]
+            nodes[self.node_of[rows[changed]]] = True
         return nodes
 
     def region(self, data: np.ndarray, kept: np.ndarray) -> np.ndarray | None:

@@ -139,6 +139,9 @@ class RelaxationResult:
         were furthest from balance, the rest of the net held
         (:func:`_sweep_fronts`); not counted in ``iterations`` or
         ``factorizations``.
+    corrected_solves : int
+        Solves of the implicit scheme by CG with the kept factor corrected on
+        the nodes whose tangent entries had changed (:class:`_SPDSolve`).
     history : dict of lists
         ``iteration``, ``max_velocity``, ``max_acceleration``,
         ``residual_norm`` sampled every ``progress_every`` iterations.
@@ -168,6 +171,7 @@ class RelaxationResult:
     rejected_steps: int = 0
     linear_iterations: int = 0
     local_steps: int = 0
+    corrected_solves: int = 0
     history: dict = field(default_factory=dict)
     start: str = "reference"
 
@@ -579,7 +583,8 @@ class _SPDSolve:
         self.correct = correct
         self._kept = None  # the factorised matrix's values, in the order of its pattern
         self._correction = None
-        self.corrected = 0  # attempts whose preconditioner was corrected on a changed region
+        self.corrected = 0  # solves by CG with the kept factor corrected on a changed region
+        self._correcting = False  # whether the current attempt's preconditioner is corrected
 
     @property
     def iteration_budget(self) -> int:
@@ -667,13 +672,22 @@ class _SPDSolve:
                 self._correction = None
         self._kept = A.data.copy() if self._correction is not None else None
 
+    def _attempt(self, A, b, prec, rtol):
+        """Conjugate gradients within the iteration budget; returns ``(x, converged)``."""
+        t0 = time.perf_counter()
+        x, ok, its = _pcg(A, b, prec, rtol, self.iteration_budget)
+        self.cg_iterations += its
+        if its:
+            self._t_iteration = (time.perf_counter() - t0) / its
+        return x, ok
+
     def _attempt_preconditioner(self, A: sp.csr_matrix):
         """The old factor, corrected where ``A`` changed from it; None when a refactorisation is due."""
+        self._correcting = False
         if self._kept is None or not self._correction.fits(A):
             return self._precondition
         prec = self._correction.preconditioner(A, self._kept, self._precondition)
-        if prec is not None and prec is not self._precondition:
-            self.corrected += 1
+        self._correcting = prec is not None and prec != self._precondition
         return prec
 
     def _precondition(self, b: np.ndarray) -> np.ndarray:
@@ -693,13 +707,10 @@ class _SPDSolve:
         """Solve ``A x = b`` to relative residual ``rtol`` (or exactly after a refactorisation)."""
         prec = self._attempt_preconditioner(A) if self._worth_an_attempt() else None
         if prec is not None:
-            t0 = time.perf_counter()
-            x, ok, its = _pcg(A, b, prec, rtol, self.iteration_budget)
-            self.cg_iterations += its
+            x, ok = self._attempt(A, b, prec, rtol)
             self.success_rate = 0.7 * self.success_rate + 0.3 * float(ok)
-            if its:
-                self._t_iteration = (time.perf_counter() - t0) / its
             if ok:
+                self.corrected += int(self._correcting)
                 return x
         self._factorize(A)
         if self.method == "amg":
@@ -845,6 +856,7 @@ def relax(
     stiffness_continuation: bool = True,
     slack_active_set: bool = True,
     front_sweeps: bool = True,
+    factor_correction: bool = True,
     start: str = "auto",
     callback: Callable[[RelaxationProgress], bool | None] | None = None,
     progress_every: int | None = None,
@@ -915,6 +927,10 @@ def relax(
         the rest of the net held (:func:`_sweep_fronts`). Nets of axial
         members under constant loads only, and with ``slack_active_set``;
         ignored otherwise.
+    factor_correction : bool
+        Implicit scheme only: before refactorising, try the kept factor
+        corrected by an exact solve on the nodes whose tangent entries changed
+        since it was made (:class:`~shellform.solvers.local_correction.LocalCorrection`).
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -954,7 +970,7 @@ def relax(
             max(int(progress_every), 1), t0)
     if scheme == "implicit":
         return _run_implicit(*args, continuation=stiffness_continuation, fd_start=fd_start,
-                             active_set=slack_active_set, sweeps=front_sweeps)
+                             active_set=slack_active_set, sweeps=front_sweeps, correction=factor_correction)
     return {"rk4": _run_rk4, "kinetic": _run_kinetic}[scheme](*args)
 
 
@@ -969,6 +985,7 @@ class _Monitor:
         self.n_fact = 0
         self.n_cg = 0
         self.n_local = 0
+        self.n_corrected = 0
         self.rejected = 0
 
     def measure(self, v_free, r_free, a_free=None):
@@ -1009,7 +1026,7 @@ class _Monitor:
             velocity_tol=self.st.v_tol, acceleration_tol=self.st.a_tol, time=t, time_step=h,
             wall_time_s=time.perf_counter() - self.t0, reactions=self.system.reactions(q, self.lam),
             residual_evaluations=self.n_res, factorizations=self.n_fact, rejected_steps=self.rejected,
-            linear_iterations=self.n_cg, local_steps=self.n_local,
+            linear_iterations=self.n_cg, local_steps=self.n_local, corrected_solves=self.n_corrected,
             history=self.history, start=self.st.start,
         )
 
@@ -1194,13 +1211,13 @@ def _continuation_scales(system, st, lam) -> list[float]:
 
 
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True,
-                  fd_start=False, active_set=True, sweeps=True):
+                  fd_start=False, active_set=True, sweeps=True, correction=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
     # without the active set a step of the whole net overshoots where it pulls slack ropes
     # taut, and the patches' steps, taken from there, only add to it (docs/theory-mra.md)
     graph = NodeGraph(system) if sweeps and active_set and patchable(system) else None
     free = system.free
-    solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free)
+    solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free, correct=correction)
     scales = _continuation_scales(system, st, lam) if continuation else [1.0]
     if fd_start:
         # the force-density shape in balance with the first stage's stiffness: the softest
@@ -1223,6 +1240,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         q, h, v, success, message, vmax, amax, rnorm = out
         mon.n_fact = solver.factorizations
         mon.n_cg = solver.cg_iterations
+        mon.n_corrected = solver.corrected
         if not success or last:
             if not last:
                 message = f"stiffness stage {k + 1} of {len(scales)} (EA x {scale:.1e}): {message}"
