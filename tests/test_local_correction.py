@@ -93,3 +93,12 @@ def test_solver_reuses_its_factor_across_a_local_change(corner_pulled_taut):
     plain.solve(A0, b, 1e-10)
     plain.solve(A1, b, 1e-10)
     assert plain.factorizations == 2
+
+
+def test_relaxation_reaches_the_same_shape_with_and_without_the_correction():
+    system = small_net(n=15, EA=1e5, boundary=True)
+    with_it = relax(system)
+    without = relax(system, factor_correction=False)
+    assert with_it.success and without.success
+    assert without.corrected_solves == 0
+    assert np.abs(with_it.q - without.q).max() < 1e-7
