@@ -419,6 +419,9 @@ RELAXATION = Table(
         "front_sweeps": Key("bool", "Implicit scheme: after a step that leaves only a few nodes out of balance "
                             "(along the fronts between taut and slack regions), take up to three Newton steps on the "
                             "nodes within four ropes of them, the rest of the net held.", default=True),
+        "factor_correction": Key("bool", "Implicit scheme: before refactorising the tangent, try conjugate gradients "
+                                 "with the kept factorisation corrected by an exact solve on the nodes whose tangent "
+                                 "entries changed (ropes pulled taut or gone slack).", default=True),
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
                      f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
                      "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "
