@@ -584,7 +584,6 @@ class _SPDSolve:
         self._kept = None  # the factorised matrix's values, in the order of its pattern
         self._correction = None
         self.corrected = 0  # solves by CG with the kept factor corrected on a changed region
-        self._correcting = False  # whether the current attempt's preconditioner is corrected
 
     @property
     def iteration_budget(self) -> int:
@@ -682,13 +681,14 @@ class _SPDSolve:
         return x, ok
 
     def _attempt_preconditioner(self, A: sp.csr_matrix):
-        """The old factor, corrected where ``A`` changed from it; None when a refactorisation is due."""
-        self._correcting = False
+        """``(preconditioner, corrected)``: the old factor, corrected where ``A`` changed from it.
+
+        The preconditioner is None when a refactorisation is due.
+        """
         if self._kept is None or not self._correction.fits(A):
-            return self._precondition
+            return self._precondition, False
         prec = self._correction.preconditioner(A, self._kept, self._precondition)
-        self._correcting = prec is not None and prec != self._precondition
-        return prec
+        return prec, prec is not None and prec != self._precondition
 
     def _precondition(self, b: np.ndarray) -> np.ndarray:
         if self.method == "ldl":
@@ -705,12 +705,12 @@ class _SPDSolve:
 
     def solve(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray:
         """Solve ``A x = b`` to relative residual ``rtol`` (or exactly after a refactorisation)."""
-        prec = self._attempt_preconditioner(A) if self._worth_an_attempt() else None
+        prec, corrected = self._attempt_preconditioner(A) if self._worth_an_attempt() else (None, False)
         if prec is not None:
             x, ok = self._attempt(A, b, prec, rtol)
             self.success_rate = 0.7 * self.success_rate + 0.3 * float(ok)
             if ok:
-                self.corrected += int(self._correcting)
+                self.corrected += int(corrected)
                 return x
         self._factorize(A)
         if self.method == "amg":
