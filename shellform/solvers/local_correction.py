@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .linear import CholeskyFactor, SingularMatrixError
+from .patch import within_rings
 
 #: an entry has changed when it moved by more than this share of the geometric mean of its two diagonal entries
 CHANGE = 0.3
@@ -62,8 +63,7 @@ class LocalCorrection:
         rows, cols = np.repeat(np.arange(sub.shape[0]), np.diff(sub.indptr)), sub.indices
         link = sp.csr_matrix((np.ones(rows.size, dtype=np.int8), (self.node_of[first][rows], self.node_of[cols])),
                              shape=(n_nodes, n_nodes))
-        link.data[:] = 1
-        self.graph = link
+        self.graph = (link.indptr, link.indices)
         self.n_nodes = n_nodes
 
     def fits(self, A: sp.csr_matrix) -> bool:
@@ -93,11 +93,8 @@ class LocalCorrection:
 
         Returns None when they are more than :data:`MOST_SHARE` of the nodes.
         """
-        nodes = self.changed_nodes(data, kept)
-        for _ in range(RINGS):
-            if not nodes.any():
-                break
-            nodes = nodes | (self.graph @ nodes.astype(np.int8) > 0)
+        nodes = np.zeros(self.n_nodes, dtype=bool)
+        nodes[within_rings(*self.graph, np.flatnonzero(self.changed_nodes(data, kept)), RINGS)] = True
         if nodes.sum() > MOST_SHARE * self.n_nodes:
             return None
         return np.flatnonzero(nodes[self.node_of])

@@ -65,21 +65,28 @@ class NodeGraph:
 
     def within(self, seeds: np.ndarray, rings: int) -> np.ndarray:
         """Nodes at most ``rings`` members away from the ``seeds`` (node indices), sorted."""
-        reached = np.zeros(self.n_nodes, dtype=bool)
-        front = np.unique(np.asarray(seeds, dtype=np.int64))
-        reached[front] = True
-        indptr, indices = self._adj
-        for _ in range(rings):
-            nb = _gather(indptr, indices, front)
-            front = np.unique(nb[~reached[nb]])
-            if not front.size:
-                break
-            reached[front] = True
-        return np.flatnonzero(reached)
+        return within_rings(*self._adj, seeds, rings)
 
     def members_of(self, nodes: np.ndarray) -> list[np.ndarray]:
         """For each axial effect, the members with at least one end among ``nodes``."""
         return [np.unique(_gather(indptr, indices, nodes)) for indptr, indices in self._members]
+
+
+def within_rings(indptr: np.ndarray, indices: np.ndarray, seeds: np.ndarray, rings: int) -> np.ndarray:
+    """Vertices at most ``rings`` edges from ``seeds`` in the graph of a CSR adjacency, sorted.
+
+    Only the growing front's rows are read, so the cost follows the region, not the graph.
+    """
+    reached = np.zeros(indptr.size - 1, dtype=bool)
+    front = np.unique(np.asarray(seeds, dtype=np.int64))
+    reached[front] = True
+    for _ in range(rings):
+        nb = _gather(indptr, indices, front)
+        front = np.unique(nb[~reached[nb]])
+        if not front.size:
+            break
+        reached[front] = True
+    return np.flatnonzero(reached)
 
 
 def _gather(indptr: np.ndarray, indices: np.ndarray, rows: np.ndarray) -> np.ndarray:
