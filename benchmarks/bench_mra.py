@@ -24,6 +24,9 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
   (``--no-sweep-sizes``), for the ratio they make;
 * the same scheme without the kept factor's correction on the nodes whose
   tangent entries changed (``--uncorrected-sizes``), for the ratio it makes;
+* the same scheme without settling the slack set on the patches around the ropes
+  whose state a step's active-set rounds leave wrong (``--unsettled-sizes``), for
+  the ratio it makes;
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -38,7 +41,7 @@ own; runs go one after another. Prints a table and writes
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes 32 100 316]
       [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
-      [--no-sweep-sizes 32 100 316] [--uncorrected-sizes 32 100 316]
+      [--no-sweep-sizes 32 100 316] [--uncorrected-sizes 32 100 316] [--unsettled-sizes 32 100 316]
       [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
@@ -70,6 +73,7 @@ VARIANTS = {
     "plain": {"scheme": "implicit", "slack_active_set": False},
     "no_sweeps": {"scheme": "implicit", "front_sweeps": False},
     "uncorrected": {"scheme": "implicit", "factor_correction": False},
+    "unsettled": {"scheme": "implicit", "slack_settling": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
     "coarse_net": {"scheme": "implicit", "start": "coarse_net"},  # form_find's own coarse net, from the net itself
@@ -154,6 +158,7 @@ def main():
     ap.add_argument("--plain-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--no-sweep-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--uncorrected-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--unsettled-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--force-density-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32])
@@ -187,7 +192,7 @@ def main():
             report(row)
         for variant, chosen in (("force_density", args.force_density_sizes), ("coarse", args.coarse_sizes),
                                 ("coarse_net", args.coarse_net_sizes), ("no_sweeps", args.no_sweep_sizes),
-                                ("uncorrected", args.uncorrected_sizes),
+                                ("uncorrected", args.uncorrected_sizes), ("unsettled", args.unsettled_sizes),
                                 ("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)

@@ -60,6 +60,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from ..effects.axial import _two_node_blocks
 from ..errors import ModelError
 from .linear import CholeskyFactor, SingularMatrixError, factorize
 from .local_correction import LocalCorrection
@@ -857,6 +858,7 @@ def relax(
     slack_active_set: bool = True,
     front_sweeps: bool = True,
     factor_correction: bool = True,
+    slack_settling: bool = True,
     start: str = "auto",
     callback: Callable[[RelaxationProgress], bool | None] | None = None,
     progress_every: int | None = None,
@@ -931,6 +933,11 @@ def relax(
         Implicit scheme only: before refactorising, try the kept factor
         corrected by an exact solve on the nodes whose tangent entries changed
         since it was made (:class:`~shellform.solvers.local_correction.LocalCorrection`).
+    slack_settling : bool
+        Implicit scheme only: when a step's active-set rounds end with ropes
+        whose slack state the step still gets wrong, settle them on the
+        patch of nodes around them (:func:`_settle_slack_set`). Needs
+        ``front_sweeps`` (its node graph); ignored otherwise.
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -970,7 +977,8 @@ def relax(
             max(int(progress_every), 1), t0)
     if scheme == "implicit":
         return _run_implicit(*args, continuation=stiffness_continuation, fd_start=fd_start,
-                             active_set=slack_active_set, sweeps=front_sweeps, correction=factor_correction)
+                             active_set=slack_active_set, sweeps=front_sweeps, correction=factor_correction,
+                             settling=slack_settling)
     return {"rk4": _run_rk4, "kinetic": _run_kinetic}[scheme](*args)
 
 
@@ -1211,7 +1219,7 @@ def _continuation_scales(system, st, lam) -> list[float]:
 
 
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True,
-                  fd_start=False, active_set=True, sweeps=True, correction=True):
+                  fd_start=False, active_set=True, sweeps=True, correction=True, settling=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
     # without the active set a step of the whole net overshoots where it pulls slack ropes
     # taut, and the patches' steps, taken from there, only add to it (docs/theory-mra.md)
@@ -1236,7 +1244,8 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         # intermediate stages only need to land near their equilibrium
         a_tol = st.a_tol if last else max(st.a_tol, 0.1 * st.g_ref)
         v_tol = st.v_tol if last else np.inf
-        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set, graph)
+        out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set, graph,
+                   settling)
         q, h, v, success, message, vmax, amax, rnorm = out
         mon.n_fact = solver.factorizations
         mon.n_cg = solver.cg_iterations
@@ -1249,7 +1258,8 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         h = min(h, np.sqrt(st.L_ref / st.g_ref))
 
 
-def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True, graph=None):
+def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True, graph=None,
+         settling=True):
     """Pseudo-transient continuation on one System; returns the final state and status."""
     st = mon.st
     free = system.free
@@ -1294,7 +1304,8 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         eta = min(1e-2, max(1e-10, float(np.sqrt(rnorm / f_scale))))
         try:
             if ropes:
-                p, engaged = _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged)
+                p, engaged = _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged,
+                                                 graph=graph if settling else None)
             else:
                 p = solver.solve(A, -r, eta)
         except SingularMatrixError:
@@ -1433,7 +1444,7 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
     return steps
 
 
-def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds=2):
+def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds=2, graph=None):
     """The pseudo-time step with the slack ropes it would stretch modelled as taut springs.
 
     The step's model treats a slack rope as absent, so a step that pulls one
@@ -1445,7 +1456,10 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
     again, and the set is updated until it stops changing or after
     ``rounds`` more solves. ``engaged`` (a mask per rope effect, e.g. the
     previous step's final set) is where the set starts; ropes taut by now
-    leave it. Returns the step and its final set (None when empty).
+    leave it. When the rounds end with a set that still changes and a
+    ``graph`` is given, the set is settled on the nodes around the ropes
+    whose state is still wrong (:func:`_settle_slack_set`). Returns the step
+    and its final set (None when empty).
     """
     free = system.free
     dq = np.zeros(system.n_dof)
@@ -1455,6 +1469,7 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
             engaged = None
     p = None
     for _ in range(rounds + 1):
+        used = engaged
         if engaged is None:
             p = solver.solve(A, -r, eta)
         else:
@@ -1472,11 +1487,111 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
         dq[free] = p
         masks = [e.stretched_by(q, dq) for e in ropes]
         if engaged is None and not any(m.any() for m in masks):
-            break
+            return p, None
         if engaged is not None and all(np.array_equal(a, b) for a, b in zip(masks, engaged)):
-            break
+            return p, engaged
         engaged = masks if any(m.any() for m in masks) else None
+    if graph is not None:
+        if used is None:
+            used = [np.zeros(len(e.L), dtype=bool) for e in ropes]
+        p, engaged = _settle_slack_set(ropes, graph, A, r, q, p, used)
     return p, engaged
+
+
+#: the slack set a step's rounds leave unsettled is settled on the nodes within SETTLE_RINGS
+#: members of the ropes whose state is wrong, while their free DOFs are at most SETTLE_SHARE of
+#: all, in at most SETTLE_STEPS local Newton steps
+SETTLE_RINGS = 3
+SETTLE_SHARE = 0.05
+SETTLE_STEPS = 8
+
+
+def _settle_slack_set(ropes, graph, A, r, q, p, used):
+    """Settle the slack set of a step on the nodes around the ropes whose state it gets wrong.
+
+    ``p`` was solved with the slack ropes of ``used`` modelled as springs
+    (:func:`_engage_slack_ropes`), but it stretches others, or leaves some of
+    those unstretched: along slack fronts the set moves by about one layer
+    of ropes per round. Those ropes are few and local, so their model is
+    solved on a patch, the nodes within :data:`SETTLE_RINGS` members of
+    them, with the rest of the step held. It is semismooth Newton on the
+    step's piecewise quadratic model ``1/2 p.A p + r.p + sum 1/2 (EA/L)
+    (l - L + n.dp)_+^2`` over the slack ropes, restricted to the patch: each
+    local step solves with the ropes it currently stretches modelled as
+    springs, until no rope changes state (at most :data:`SETTLE_STEPS`). The
+    ropes outside the patch keep their state, as the step does not change
+    there. Returns the step and the set of the slack ropes it stretches
+    (None when empty).
+    """
+    free_index = graph.free_index
+    dq = np.zeros(free_index.size)
+    dq[free_index >= 0] = p
+    geo = []
+    for e in ropes:
+        d, length = e._geometry(q)
+        geo.append((d / length[:, None], length - e.L, e.EA / e.L, ~e._active(length)))
+
+    def stretched(e, n, gap, slack, members):
+        dd = dq[e.dofs[members, 3:]] - dq[e.dofs[members, :3]]
+        return slack[members] & (gap[members] + np.einsum("ij,ij->i", n[members], dd) > 0)
+
+    state = [stretched(e, n, gap, slack, slice(None)) for e, (n, gap, k, slack) in zip(ropes, geo)]
+    wrong = [e.conn[a != b].ravel() for e, a, b in zip(ropes, state, used)]
+    seeds = np.unique(np.concatenate(wrong))
+    if not seeds.size:
+        return p, (state if any(m.any() for m in state) else None)
+    nodes = graph.within(seeds, SETTLE_RINGS)
+    rows = free_index[(3 * nodes[:, None] + np.arange(3)).ravel()]
+    rows = np.sort(rows[rows >= 0])
+    if rows.size > SETTLE_SHARE * p.size:
+        return p, (state if any(m.any() for m in state) else None)
+    patch_dofs = np.flatnonzero(free_index >= 0)[rows]  # global DOF of each row
+    local = np.full(free_index.size, -1, dtype=np.int64)  # local position of each global DOF on the patch
+    local[patch_dofs] = np.arange(rows.size)
+    A_rows = A[rows]
+    A_loc = A_rows[:, rows]
+    members = graph.members_of(nodes)
+    p = p.copy()
+    for _ in range(SETTLE_STEPS):
+        # the model's gradient and Hessian on the patch, the stretched slack ropes as springs
+        grad = A_rows @ p + r[rows]
+        blocks, block_dofs = [], []
+        for e, (n, gap, k, slack), m, s in zip(ropes, geo, members, state):
+            on = m[s[m]]
+            if not on.size:
+                continue
+            dd = dq[e.dofs[on, 3:]] - dq[e.dofs[on, :3]]
+            pull = (k[on] * (gap[on] + np.einsum("ij,ij->i", n[on], dd)))[:, None] * n[on]
+            ld = local[e.dofs[on]]
+            np.add.at(grad, ld[ld >= 0], np.concatenate([-pull, pull], axis=1)[ld >= 0])
+            nn = k[on][:, None, None] * (n[on][:, :, None] * n[on][:, None, :])
+            blocks.append(nn)
+            block_dofs.append(ld)
+        H = A_loc
+        if blocks:
+            vals = _two_node_blocks(np.concatenate(blocks))
+            ld = np.concatenate(block_dofs)
+            ii = np.repeat(ld, 6, axis=1).ravel()  # row-major 6 x 6 blocks over the members' end DOFs
+            jj = np.tile(ld, (1, 6)).ravel()
+            keep = (ii >= 0) & (jj >= 0)
+            H = H + sp.csr_matrix((vals[keep], (ii[keep], jj[keep])), shape=A_loc.shape)
+        try:
+            delta = CholeskyFactor(H).solve(-grad)
+        except SingularMatrixError:
+            break
+        if not np.all(np.isfinite(delta)):
+            break
+        p[rows] += delta
+        dq[patch_dofs] = p[rows]
+        changed = False
+        for i, (e, (n, gap, k, slack), m) in enumerate(zip(ropes, geo, members)):
+            new = stretched(e, n, gap, slack, m)
+            changed |= not np.array_equal(new, state[i][m])
+            state[i] = state[i].copy()
+            state[i][m] = new
+        if not changed:
+            break
+    return p, (state if any(m.any() for m in state) else None)
 
 
 def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> float:

@@ -1,0 +1,97 @@
+"""Settling a step's slack set on the nodes around the ropes whose state the step gets wrong."""
+
+import numpy as np
+import pytest
+
+from shellform.solvers import relaxation
+from shellform.solvers.patch import NodeGraph
+from shellform.solvers.relaxation import _diagonal_positions, _engage_slack_ropes, _settle_slack_set, _SPDSolve, relax
+
+from test_relaxation import small_net
+
+
+@pytest.fixture(scope="module")
+def first_step():
+    """The first pseudo-time step of a falling net: many slack ropes, a step that stretches some of them."""
+    system = small_net(n=21, EA=1e5, boundary=True)
+    q = relax(system, max_iterations=1).q
+    K = system.tangent_free(q)
+    K.sort_indices()
+    A = K.copy()
+    A.data[_diagonal_positions(K)] += np.repeat(relaxation.nodal_masses(system), 3)[system.free]  # h = 1 s
+    r = system.residual(q)[system.free]
+    ropes = [e for e in system.effects if hasattr(e, "stretched_by")]
+    return system, ropes, A, r, q
+
+
+def _stretched(system, ropes, q, p):
+    dq = np.zeros(system.n_dof)
+    dq[system.free] = p
+    return [e.stretched_by(q, dq) for e in ropes]
+
+
+def _model_gradient(system, ropes, A, r, q, p, sets):
+    """Gradient of the step's model with the ropes of ``sets`` as springs, at ``p`` (free DOFs)."""
+    g = A @ p + r
+    for e, m in zip(ropes, sets):
+        ge, values = e.engaged_terms(q, m)
+        g += ge[system.free] + system.assemble_free({e: values}) @ p
+    return g
+
+
+def test_settling_on_the_whole_net_is_the_converged_active_set(first_step, monkeypatch):
+    system, ropes, A, r, q = first_step
+    solver = _SPDSolve("cholesky", system.free.size)
+    # one solve without slack ropes: the step stretches some of them
+    p0, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
+    none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
+    wrong = sum(int(m.sum()) for m in _stretched(system, ropes, q, p0))
+    assert wrong >= 10
+    # a patch as large as the net: the local Newton steps solve the step's whole model
+    monkeypatch.setattr(relaxation, "SETTLE_SHARE", 1.0)
+    monkeypatch.setattr(relaxation, "SETTLE_RINGS", 100)
+    p, sets = _settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
+    # settled: the step stretches exactly the ropes it was solved with, and is the model's minimiser
+    assert all(np.array_equal(a, b) for a, b in zip(_stretched(system, ropes, q, p), sets))
+    assert np.linalg.norm(_model_gradient(system, ropes, A, r, q, p, sets)) < 1e-8 * np.linalg.norm(r)
+    # the global rounds, given enough of them, reach the same step
+    p_rounds, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=30)
+    assert np.abs(p - p_rounds).max() < 1e-8 * np.abs(p).max()
+
+
+def test_a_patch_beyond_the_share_leaves_the_step_as_it_is(first_step):
+    system, ropes, A, r, q = first_step
+    solver = _SPDSolve("cholesky", system.free.size)
+    p0, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
+    none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
+    # on this small net three rings around the wrong ropes are more than the share of the nodes
+    p, sets = _settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
+    assert p is p0
+    assert all(np.array_equal(a, b) for a, b in zip(_stretched(system, ropes, q, p0), sets))
+
+
+def test_relaxation_reaches_the_same_shape_with_and_without_settling(monkeypatch):
+    settled = []
+    original = relaxation._settle_slack_set
+
+    def counting(ropes, graph, A, r, q, p, used):
+        out = original(ropes, graph, A, r, q, p, used)
+        settled.append(out[0] is not p)
+        return out
+
+    monkeypatch.setattr(relaxation, "_settle_slack_set", counting)
+    # on a net this small three rings around the wrong ropes are a large share of the nodes
+    monkeypatch.setattr(relaxation, "SETTLE_SHARE", 0.5)
+    system = small_net(n=41, EA=1e5, boundary=True)
+    with_it = relax(system)
+    assert any(settled), "the relaxation never settled a step: the test does not exercise the settling"
+    without = relax(system, slack_settling=False)
+    assert with_it.success and without.success
+    assert np.abs(with_it.q - without.q).max() < 1e-7
+
+
+def test_scene_key_reaches_the_relaxation():
+    from shellform.mra.case import _merge, _solver_options
+
+    assert _solver_options(_merge({}), None)["slack_settling"] is True
+    assert _solver_options(_merge({"solver": {"slack_settling": False}}), None)["slack_settling"] is False
