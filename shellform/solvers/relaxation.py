@@ -43,7 +43,10 @@ Three schemes reach that rest state; ``scheme`` selects one:
     supernodal Cholesky; LDL^T or SuperLU in nested-dissection order on
     request); and, once only a few nodes along the fronts between taut and
     slack regions are far from balance, Newton steps on the patches around
-    them with the rest of the net held (:func:`_sweep_fronts`).
+    them with the rest of the net held (:func:`_sweep_fronts`). A step's
+    slack ropes enter its model by an active set (:func:`_engage_slack_ropes`),
+    settled on the patches where its rounds leave ropes in the wrong state
+    (:func:`_settle_slack_set`).
 
 All three stop on the same test (nodal velocity and acceleration below the
 tolerances) and reach the same equilibrium: the minimum of the potential.
