@@ -114,3 +114,27 @@ def test_slack_rope_stretched_by_a_step_and_its_engaged_model():
         flagged = rope.stretched_by(q, dq.ravel())
         assert flagged[k] and not flagged[~engaged].any()
         assert not rope.stretched_by(q, -dq.ravel())[k]  # pushed together: stays slack
+
+
+def test_rope_linearised_model_is_the_first_order_change_of_length():
+    rng = np.random.default_rng(11)
+    nodes, conn = random_members(rng)
+    q = nodes.ravel()
+    length = np.linalg.norm(nodes[conn[:, 1]] - nodes[conn[:, 0]], axis=1)
+    rest = length * np.where(np.arange(len(conn)) % 3 == 0, 1.1, 0.9)
+    EA = rng.uniform(1, 5, len(conn))
+    rope = Rope(q.size, conn, EA, rest)
+    n, gap, k, slack = rope.linearised(q)
+
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    assert np.allclose(gap, length - rest)
+    assert np.allclose(k, EA / rest)
+    assert np.array_equal(slack, np.arange(len(conn)) % 3 == 0)
+    # gap + n . dd is the stretch after a small step, to second order in the step
+    step = rng.normal(size=q.size)
+    for h in (1e-3, 1e-4):
+        moved = (q + h * step).reshape(-1, 3)
+        stretch = np.linalg.norm(moved[conn[:, 1]] - moved[conn[:, 0]], axis=1) - rest
+        dd = (h * step).reshape(-1, 3)
+        predicted = gap + np.einsum("ij,ij->i", n, dd[conn[:, 1]] - dd[conn[:, 0]])
+        assert np.max(np.abs(stretch - predicted)) < 10 * h * h * np.max(np.abs(step)) ** 2 / length.min()

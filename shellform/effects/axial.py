@@ -25,7 +25,7 @@ import numpy as np
 from .base import Effect, element_pattern, scatter
 
 
-def _two_node_blocks(K: np.ndarray) -> np.ndarray:
+def two_node_blocks(K: np.ndarray) -> np.ndarray:
     """Member Hessians ``[[K, -K], [-K, K]]`` from the 3 x 3 blocks ``K`` (m, 3, 3), flattened."""
     block = np.empty((len(K), 6, 6))
     block[:, :3, :3] = K
@@ -123,7 +123,7 @@ class _AxialMembers(Effect):
         n = d / length[:, None]
         nn = n[:, :, None] * n[:, None, :]
         K = (k - N / length)[:, None, None] * nn + (N / length)[:, None, None] * np.eye(3)
-        return _two_node_blocks(K)
+        return two_node_blocks(K)
 
     def member_results(self, q):
         _, length = self._geometry(q)
@@ -173,6 +173,17 @@ class Rope(_AxialMembers):
         """Mask of the ropes not longer than their rest length at ``q``."""
         return ~self._active(self._geometry(q)[1])
 
+    def linearised(self, q):
+        """The ropes' axial model at ``q``, linear in a step of their end nodes.
+
+        Returns ``(n, gap, k, slack)``: unit direction from the first end node
+        to the second, length minus rest length, axial stiffness ``EA / L``
+        and the mask of the slack ropes. A step ``dd`` of the end-node
+        difference changes a rope's length by ``n . dd`` to first order.
+        """
+        d, length = self._geometry(q)
+        return d / length[:, None], length - self.L, self.EA / self.L, ~self._active(length)
+
     def stretched_by(self, q, dq):
         """Slack ropes that the straight step ``dq`` stretches in the linearised model.
 
@@ -180,10 +191,9 @@ class Rope(_AxialMembers):
         the step lengthens it past its rest length to first order
         (``l + n . (dq_b - dq_a) > L``), the rope would resist it.
         """
-        d, length = self._geometry(q)
-        n = d / length[:, None]
+        n, gap, _, slack = self.linearised(q)
         dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
-        return ~self._active(length) & self._active(length + np.einsum("ij,ij->i", n, dd))
+        return slack & (gap + np.einsum("ij,ij->i", n, dd) > 0)
 
     def engaged_terms(self, q, engaged):
         """Gradient and Hessian values of slack ropes modelled as taut springs.
@@ -195,10 +205,9 @@ class Rope(_AxialMembers):
         gradient over all DOFs at ``dd = 0`` and Hessian values in the order of
         :meth:`hessian_pattern` (zero for the other ropes).
         """
-        d, length = self._geometry(q)
-        n = d / length[:, None]
-        k = np.where(engaged, self.EA / self.L, 0.0)
-        f = (k * (length - self.L))[:, None] * n
+        n, gap, k, _ = self.linearised(q)
+        k = np.where(engaged, k, 0.0)
+        f = (k * gap)[:, None] * n
         grad = scatter(self.n_dof, self.dofs, np.concatenate([-f, f], axis=1))
         K = k[:, None, None] * (n[:, :, None] * n[:, None, :])
-        return grad, _two_node_blocks(K)
+        return grad, two_node_blocks(K)

@@ -63,7 +63,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..effects.axial import _two_node_blocks
+from ..effects.axial import two_node_blocks
 from ..errors import ModelError
 from .linear import CholeskyFactor, SingularMatrixError, factorize
 from .local_correction import LocalCorrection
@@ -1529,10 +1529,7 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used):
     free_index = graph.free_index
     dq = np.zeros(free_index.size)
     dq[free_index >= 0] = p
-    geo = []
-    for e in ropes:
-        d, length = e._geometry(q)
-        geo.append((d / length[:, None], length - e.L, e.EA / e.L, ~e._active(length)))
+    geo = [e.linearised(q) for e in ropes]
 
     def stretched(e, n, gap, slack, members):
         dd = dq[e.dofs[members, 3:]] - dq[e.dofs[members, :3]]
@@ -1572,7 +1569,7 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used):
             block_dofs.append(ld)
         H = A_loc
         if blocks:
-            vals = _two_node_blocks(np.concatenate(blocks))
+            vals = two_node_blocks(np.concatenate(blocks))
             ld = np.concatenate(block_dofs)
             ii = np.repeat(ld, 6, axis=1).ravel()  # row-major 6 x 6 blocks over the members' end DOFs
             jj = np.tile(ld, (1, 6)).ravel()
