@@ -64,30 +64,45 @@ def test_a_patch_beyond_the_share_leaves_the_step_as_it_is(first_step):
     solver = _SPDSolve("cholesky", system.free.size)
     p0, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
     none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
+    assert sum(int(m.sum()) for m in _stretched(system, ropes, q, p0)) >= 10  # there is something to settle
     # on this small net three rings around the wrong ropes are more than the share of the nodes
     p, sets = _settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
     assert p is p0
     assert all(np.array_equal(a, b) for a, b in zip(_stretched(system, ropes, q, p0), sets))
 
 
-def test_relaxation_reaches_the_same_shape_with_and_without_settling(monkeypatch):
-    settled = []
+@pytest.fixture
+def settled(monkeypatch):
+    """For each settling call of a relaxation, whether it changed the step."""
+    changed = []
     original = relaxation._settle_slack_set
 
     def counting(ropes, graph, A, r, q, p, used):
         out = original(ropes, graph, A, r, q, p, used)
-        settled.append(out[0] is not p)
+        changed.append(out[0] is not p)
         return out
 
     monkeypatch.setattr(relaxation, "_settle_slack_set", counting)
     # on a net this small three rings around the wrong ropes are a large share of the nodes
     monkeypatch.setattr(relaxation, "SETTLE_SHARE", 0.5)
+    return changed
+
+
+def test_relaxation_reaches_the_same_shape_with_and_without_settling(settled):
     system = small_net(n=41, EA=1e5, boundary=True)
     with_it = relax(system)
     assert any(settled), "the relaxation never settled a step: the test does not exercise the settling"
     without = relax(system, slack_settling=False)
     assert with_it.success and without.success
     assert np.abs(with_it.q - without.q).max() < 1e-7
+
+
+def test_settling_does_not_depend_on_the_front_sweeps(settled):
+    system = small_net(n=41, EA=1e5, boundary=True)
+    out = relax(system, front_sweeps=False)
+    assert out.success
+    assert any(settled), "without the front sweeps no step was settled"
+    assert out.local_steps == 0  # the sweeps stay off
 
 
 def test_scene_key_reaches_the_relaxation():

@@ -940,7 +940,8 @@ def relax(
         Implicit scheme only: when a step's active-set rounds end with ropes
         whose slack state the step still gets wrong, settle them on the
         patch of nodes around them (:func:`_settle_slack_set`). Needs
-        ``front_sweeps`` (its node graph); ignored otherwise.
+        ``slack_active_set``; like the front sweeps, only for nets of axial
+        members under constant loads.
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -1226,7 +1227,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
     # without the active set a step of the whole net overshoots where it pulls slack ropes
     # taut, and the patches' steps, taken from there, only add to it (docs/theory-mra.md)
-    graph = NodeGraph(system) if sweeps and active_set and patchable(system) else None
+    graph = NodeGraph(system) if (sweeps or settling) and active_set and patchable(system) else None
     free = system.free
     solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free, correct=correction)
     scales = _continuation_scales(system, st, lam) if continuation else [1.0]
@@ -1248,7 +1249,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         a_tol = st.a_tol if last else max(st.a_tol, 0.1 * st.g_ref)
         v_tol = st.v_tol if last else np.inf
         out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set, graph,
-                   settling)
+                   sweeps, settling)
         q, h, v, success, message, vmax, amax, rnorm = out
         mon.n_fact = solver.factorizations
         mon.n_cg = solver.cg_iterations
@@ -1262,7 +1263,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
 
 
 def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True, graph=None,
-         settling=True):
+         sweeps=True, settling=True):
     """Pseudo-transient continuation on one System; returns the final state and status."""
     st = mon.st
     free = system.free
@@ -1352,7 +1353,7 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         elif rho < 0.25:
             # a partial step is progress; only a poor quadratic model shortens the pseudo step
             h *= 0.5
-        if graph is not None:
+        if graph is not None and sweeps:
             mon.n_local += _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor)
         vmax, amax, rnorm = mon.measure(v, r)
         stop = mon.tick(total["it"], total["t"], vmax, amax, rnorm, q[free], v)
@@ -1587,7 +1588,6 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used):
         for i, (e, (n, gap, k, slack), m) in enumerate(zip(ropes, geo, members)):
             new = stretched(e, n, gap, slack, m)
             changed |= not np.array_equal(new, state[i][m])
-            state[i] = state[i].copy()
             state[i][m] = new
         if not changed:
             break
