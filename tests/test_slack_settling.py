@@ -30,33 +30,52 @@ def _stretched(system, ropes, q, p):
     return [e.stretched_by(q, dq) for e in ropes]
 
 
-def _model_gradient(system, ropes, A, r, q, p, sets):
-    """Gradient of the step's model with the ropes of ``sets`` as springs, at ``p`` (free DOFs)."""
+def _released(system, ropes, q, p):
+    """Taut ropes that the step ``p`` (free DOFs) shortens to their rest length or below, to first order."""
+    dq = np.zeros(system.n_dof)
+    dq[system.free] = p
+    out = []
+    for e in ropes:
+        n, gap, _, slack = e.linearised(q)
+        dd = dq[e.dofs[:, 3:]] - dq[e.dofs[:, :3]]
+        out.append(~slack & (gap + np.einsum("ij,ij->i", n, dd) <= 0))
+    return out
+
+
+def _model_gradient(system, ropes, A, r, q, p, stretched, released):
+    """Gradient at ``p`` of the step's model with the slack ropes of ``stretched`` as springs
+    and the taut ropes of ``released`` without theirs."""
     g = A @ p + r
-    for e, m in zip(ropes, sets):
-        ge, values = e.engaged_terms(q, m)
-        g += ge[system.free] + system.assemble_free({e: values}) @ p
+    for e, m, off in zip(ropes, stretched, released):
+        for mask, sign in ((m, 1.0), (off, -1.0)):
+            ge, values = e.engaged_terms(q, mask)
+            g += sign * (ge[system.free] + system.assemble_free({e: values}) @ p)
     return g
 
 
-def test_settling_on_the_whole_net_is_the_converged_active_set(first_step, monkeypatch):
+def test_settling_on_the_whole_net_minimises_the_step_model(first_step, monkeypatch):
     system, ropes, A, r, q = first_step
     solver = _SPDSolve("cholesky", system.free.size)
-    # one solve without slack ropes: the step stretches some of them
+    # one solve without slack ropes: the step stretches some of them and shortens taut ones
+    # below their rest length, where the model's springs push
     p0, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
     none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
-    wrong = sum(int(m.sum()) for m in _stretched(system, ropes, q, p0))
-    assert wrong >= 10
+    assert sum(int(m.sum()) for m in _stretched(system, ropes, q, p0)) >= 10
+    assert sum(int(m.sum()) for m in _released(system, ropes, q, p0)) >= 10
     # a patch as large as the net: the local Newton steps solve the step's whole model
     monkeypatch.setattr(relaxation, "SETTLE_SHARE", 1.0)
     monkeypatch.setattr(relaxation, "SETTLE_RINGS", 100)
     p, sets = _settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
-    # settled: the step stretches exactly the ropes it was solved with, and is the model's minimiser
+    # settled: the step stretches exactly the slack ropes it returns as springs ...
     assert all(np.array_equal(a, b) for a, b in zip(_stretched(system, ropes, q, p), sets))
-    assert np.linalg.norm(_model_gradient(system, ropes, A, r, q, p, sets)) < 1e-8 * np.linalg.norm(r)
-    # the global rounds, given enough of them, reach the same step
-    p_rounds, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=30)
-    assert np.abs(p - p_rounds).max() < 1e-8 * np.abs(p).max()
+    # ... and is the minimiser of the convex model, with the taut ropes it releases without springs
+    released = _released(system, ropes, q, p)
+    assert sum(int(m.sum()) for m in released) >= 1
+    g = _model_gradient(system, ropes, A, r, q, p, sets, released)
+    assert np.linalg.norm(g) < 1e-8 * np.linalg.norm(r)
+    # the model's gradient at the unsettled step is not small: the check can fail
+    g0 = _model_gradient(system, ropes, A, r, q, p0, _stretched(system, ropes, q, p0), _released(system, ropes, q, p0))
+    assert np.linalg.norm(g0) > 1e-3 * np.linalg.norm(r)
 
 
 def test_a_patch_beyond_the_share_leaves_the_step_as_it_is(first_step):

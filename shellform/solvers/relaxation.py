@@ -1187,6 +1187,10 @@ def _with_stiffness_scale(system, scale: float):
     return view
 
 
+#: an intermediate stiffness stage ends when every nodal acceleration is below this many g
+STAGE_TOLERANCE = 0.1
+
+
 def _continuation_scales(system, st, lam) -> list[float]:
     """Stiffness scales of the EA continuation, ending at 1.
 
@@ -1246,7 +1250,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         last = k == len(scales) - 1
         view = system if scale == 1.0 else _with_stiffness_scale(system, scale)
         # intermediate stages only need to land near their equilibrium
-        a_tol = st.a_tol if last else max(st.a_tol, 0.1 * st.g_ref)
+        a_tol = st.a_tol if last else max(st.a_tol, STAGE_TOLERANCE * st.g_ref)
         v_tol = st.v_tol if last else np.inf
         out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set, graph,
                    sweeps, settling)
@@ -1460,10 +1464,11 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
     again, and the set is updated until it stops changing or after
     ``rounds`` more solves. ``engaged`` (a mask per rope effect, e.g. the
     previous step's final set) is where the set starts; ropes taut by now
-    leave it. When the rounds end with a set that still changes and a
-    ``graph`` is given, the set is settled on the nodes around the ropes
-    whose state is still wrong (:func:`_settle_slack_set`). Returns the step
-    and its final set (None when empty).
+    leave it. With a ``graph``, the step is then settled on the nodes around
+    the ropes whose state it still gets wrong (:func:`_settle_slack_set`):
+    slack ropes when the rounds end with a set that still changes, and taut
+    ropes that the step shortens below their rest length, which the rounds
+    do not model. Returns the step and its final set (None when empty).
     """
     free = system.free
     dq = np.zeros(system.n_dof)
@@ -1472,6 +1477,7 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
         if not any(m.any() for m in engaged):
             engaged = None
     p = None
+    settled = False
     for _ in range(rounds + 1):
         used = engaged
         if engaged is None:
@@ -1490,62 +1496,74 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
             p = solver.solve(A_set, -(r + g[free]), eta)
         dq[free] = p
         masks = [e.stretched_by(q, dq) for e in ropes]
-        if engaged is None and not any(m.any() for m in masks):
-            return p, None
-        if engaged is not None and all(np.array_equal(a, b) for a, b in zip(masks, engaged)):
-            return p, engaged
+        if used is None and not any(m.any() for m in masks) or \
+                used is not None and all(np.array_equal(a, b) for a, b in zip(masks, used)):
+            settled = True
+            break
         engaged = masks if any(m.any() for m in masks) else None
-    if graph is not None:
-        if used is None:
-            used = [np.zeros(len(e.L), dtype=bool) for e in ropes]
-        p, engaged = _settle_slack_set(ropes, graph, A, r, q, p, used)
-    return p, engaged
+    if graph is None:
+        return p, (used if settled else engaged)
+    if used is None:
+        used = [np.zeros(len(e.L), dtype=bool) for e in ropes]
+    # a settled set can still shorten taut ropes below their rest length: the step holds them as
+    # springs that push, so they are released on the patch around them
+    return _settle_slack_set(ropes, graph, A, r, q, p, used)
 
 
-#: the slack set a step's rounds leave unsettled is settled on the nodes within SETTLE_RINGS
-#: members of the ropes whose state is wrong, while their free DOFs are at most SETTLE_SHARE of
+#: the ropes whose state a step gets wrong are settled on the nodes within SETTLE_RINGS
+#: members of them, while their free DOFs are at most SETTLE_SHARE of
 #: all, in at most SETTLE_STEPS local Newton steps
 SETTLE_RINGS = 3
-SETTLE_SHARE = 0.05
+SETTLE_SHARE = 0.3
 SETTLE_STEPS = 8
 
 
 def _settle_slack_set(ropes, graph, A, r, q, p, used):
     """Settle the slack set of a step on the nodes around the ropes whose state it gets wrong.
 
-    ``p`` was solved with the slack ropes of ``used`` modelled as springs
-    (:func:`_engage_slack_ropes`), but it stretches others, or leaves some of
-    those unstretched: along slack fronts the set moves by about one layer
-    of ropes per round. Those ropes are few and local, so their model is
-    solved on a patch, the nodes within :data:`SETTLE_RINGS` members of
-    them, with the rest of the step held. It is semismooth Newton on the
-    step's piecewise quadratic model ``1/2 p.A p + r.p + sum 1/2 (EA/L)
-    (l - L + n.dp)_+^2`` over the slack ropes, restricted to the patch: each
-    local step solves with the ropes it currently stretches modelled as
-    springs, until no rope changes state (at most :data:`SETTLE_STEPS`). The
-    ropes outside the patch keep their state, as the step does not change
-    there. Returns the step and the set of the slack ropes it stretches
-    (None when empty).
+    ``p`` was solved with every taut rope and the slack ropes of ``used``
+    modelled as springs (:func:`_engage_slack_ropes`). It may stretch other
+    slack ropes, or leave some of ``used`` unstretched: along slack fronts
+    the rounds move the set by about one layer of ropes per round. It may
+    also shorten taut ropes below their rest length, where their springs
+    push, so a front of ropes going slack moves by one layer per step. Those
+    ropes are few and local, so the step's model is solved on a patch, the
+    nodes within :data:`SETTLE_RINGS` members of them, with the rest of the
+    step held. The model is convex and piecewise quadratic: ``1/2 p.A p +
+    r.p`` with the taut ropes' springs taken out of ``A``, plus ``sum 1/2
+    (EA/L) (l - L + n.dp)_+^2`` over all ropes. Semismooth Newton on the
+    patch solves it, each local step with the ropes it currently stretches
+    as springs, until no rope changes state (at most :data:`SETTLE_STEPS`).
+    The ropes outside the patch keep their state, as the step does not
+    change there. Returns the step and the set of the slack ropes it
+    stretches (None when empty).
     """
     free_index = graph.free_index
     dq = np.zeros(free_index.size)
     dq[free_index >= 0] = p
     geo = [e.linearised(q) for e in ropes]
 
-    def stretched(e, n, gap, slack, members):
+    def taut_after(e, n, gap, members):
         dd = dq[e.dofs[members, 3:]] - dq[e.dofs[members, :3]]
-        return slack[members] & (gap[members] + np.einsum("ij,ij->i", n[members], dd) > 0)
+        return gap[members] + np.einsum("ij,ij->i", n[members], dd) > 0
 
-    state = [stretched(e, n, gap, slack, slice(None)) for e, (n, gap, k, slack) in zip(ropes, geo)]
-    wrong = [e.conn[a != b].ravel() for e, a, b in zip(ropes, state, used)]
+    # the step was solved with the taut ropes and the slack ropes of ``used`` as springs
+    modelled = [u | ~slack for u, (n, gap, k, slack) in zip(used, geo)]
+    state = [taut_after(e, n, gap, slice(None)) for e, (n, gap, k, slack) in zip(ropes, geo)]
+
+    def result(p):
+        stretched = [s & slack for s, (n, gap, k, slack) in zip(state, geo)]
+        return p, (stretched if any(m.any() for m in stretched) else None)
+
+    wrong = [e.conn[a != b].ravel() for e, a, b in zip(ropes, state, modelled)]
     seeds = np.unique(np.concatenate(wrong))
     if not seeds.size:
-        return p, (state if any(m.any() for m in state) else None)
+        return result(p)
     nodes = graph.within(seeds, SETTLE_RINGS)
     rows = free_index[(3 * nodes[:, None] + np.arange(3)).ravel()]
     rows = np.sort(rows[rows >= 0])
     if rows.size > SETTLE_SHARE * p.size:
-        return p, (state if any(m.any() for m in state) else None)
+        return result(p)
     patch_dofs = np.flatnonzero(free_index >= 0)[rows]  # global DOF of each row
     local = np.full(free_index.size, -1, dtype=np.int64)  # local position of each global DOF on the patch
     local[patch_dofs] = np.arange(rows.size)
@@ -1554,19 +1572,20 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used):
     members = graph.members_of(nodes)
     p = p.copy()
     for _ in range(SETTLE_STEPS):
-        # the model's gradient and Hessian on the patch, the stretched slack ropes as springs
+        # the model's gradient and Hessian on the patch: A holds every taut rope as a spring, so a
+        # stretched slack rope adds one and a released taut rope takes its spring away
         grad = A_rows @ p + r[rows]
         blocks, block_dofs = [], []
         for e, (n, gap, k, slack), m, s in zip(ropes, geo, members, state):
-            on = m[s[m]]
+            on = m[s[m] != ~slack[m]]
             if not on.size:
                 continue
+            sign = np.where(slack[on], 1.0, -1.0)
             dd = dq[e.dofs[on, 3:]] - dq[e.dofs[on, :3]]
-            pull = (k[on] * (gap[on] + np.einsum("ij,ij->i", n[on], dd)))[:, None] * n[on]
+            pull = (sign * k[on] * (gap[on] + np.einsum("ij,ij->i", n[on], dd)))[:, None] * n[on]
             ld = local[e.dofs[on]]
             np.add.at(grad, ld[ld >= 0], np.concatenate([-pull, pull], axis=1)[ld >= 0])
-            nn = k[on][:, None, None] * (n[on][:, :, None] * n[on][:, None, :])
-            blocks.append(nn)
+            blocks.append((sign * k[on])[:, None, None] * (n[on][:, :, None] * n[on][:, None, :]))
             block_dofs.append(ld)
         H = A_loc
         if blocks:
@@ -1586,12 +1605,12 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used):
         dq[patch_dofs] = p[rows]
         changed = False
         for i, (e, (n, gap, k, slack), m) in enumerate(zip(ropes, geo, members)):
-            new = stretched(e, n, gap, slack, m)
+            new = taut_after(e, n, gap, m)
             changed |= not np.array_equal(new, state[i][m])
             state[i][m] = new
         if not changed:
             break
-    return p, (state if any(m.any() for m in state) else None)
+    return result(p)
 
 
 def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> float:
