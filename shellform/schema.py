@@ -422,9 +422,10 @@ RELAXATION = Table(
         "factor_correction": Key("bool", "Implicit scheme: before refactorising the tangent, try conjugate gradients "
                                  "with the kept factorisation corrected by an exact solve on the nodes whose tangent "
                                  "entries changed (ropes pulled taut or gone slack).", default=True),
-        "slack_settling": Key("bool", "Implicit scheme: when a step's active-set rounds end with ropes whose slack "
-                              "state the step still gets wrong, settle them by Newton steps on the step's model over "
-                              "the nodes within three ropes of them (needs slack_active_set).", default=True),
+        "slack_settling": Key("bool", "Implicit scheme: when a step gets ropes' slack state wrong (slack ropes it "
+                              "stretches outside its active set, taut ones it shortens below their rest length), "
+                              "settle them by Newton steps on the step's model over the nodes within three ropes of "
+                              "them (needs slack_active_set).", default=True),
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
                      f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
                      "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "

@@ -937,9 +937,10 @@ def relax(
         corrected by an exact solve on the nodes whose tangent entries changed
         since it was made (:class:`~shellform.solvers.local_correction.LocalCorrection`).
     slack_settling : bool
-        Implicit scheme only: when a step's active-set rounds end with ropes
-        whose slack state the step still gets wrong, settle them on the
-        patch of nodes around them (:func:`_settle_slack_set`). Needs
+        Implicit scheme only: when a step gets ropes' slack state wrong
+        (slack ropes it stretches outside its active set, taut ones it
+        shortens below their rest length), settle them on the patch of nodes
+        around them (:func:`_settle_slack_set`). Needs
         ``slack_active_set``; like the front sweeps, only for nets of axial
         members under constant loads.
     start : {"auto", "reference", "force_density"}
