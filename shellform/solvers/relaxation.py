@@ -1188,8 +1188,9 @@ def _with_stiffness_scale(system, scale: float):
     return view
 
 
-#: an intermediate stiffness stage ends when every nodal acceleration is below this many g
-STAGE_TOLERANCE = 0.1
+#: an intermediate stiffness stage ends when every nodal acceleration is below this many g: it
+#: only has to land near its equilibrium, and a tighter tolerance ends it with a crawl of slack fronts
+STAGE_TOLERANCE = 0.3
 
 
 def _continuation_scales(system, st, lam) -> list[float]:
