@@ -53,6 +53,31 @@ def test_tangent_is_the_derivative_of_the_residual():
     assert Kr.nnz == Kt.nnz and np.allclose((Kr + others).toarray(), Kff)
 
 
+
+def test_adding_a_few_members_entries_matches_a_whole_assembly():
+    rng = np.random.default_rng(5)
+    s = sf.Structure(rng.normal(size=(8, 3)))
+    s.add_ropes([[0, 1], [1, 2], [2, 3], [3, 4], [4, 5], [5, 6], [6, 7], [7, 0], [1, 5]], EA=3.0, slack=0.05)
+    s.add_bars([[0, 4], [2, 6]], EA=5.0)
+    s.fix([0, 3])
+    system = sf.build_system(s)
+    q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
+    rope = next(e for e in system.effects if e.name == "rope")
+    members = np.array([0, 2, 3, 8])  # members 0, 2 and 3 end at held nodes
+    vals = np.zeros((len(rope.L), 36))
+    vals[members] = rng.normal(size=(members.size, 36))
+    # both matrices have the tangent's pattern entry for entry, so their data add
+    expected = system.tangent_free(q).data + system.assemble_free({rope: vals.ravel()}).data
+    A = system.tangent_free(q)
+    system.add_free_entries(A, rope, rope.hessian_entries(members), vals[members].ravel())
+    assert np.abs(A.data - system.tangent_free(q).data).max() > 0.1  # the entries of member 8 were added
+    assert np.allclose(A.data, expected, rtol=1e-14, atol=1e-14)
+    with pytest.raises(sf.ModelError, match="pattern of the free tangent"):
+        system.add_free_entries(system.tangent(q), rope, rope.hessian_entries(members), vals[members].ravel())
+    other = sf.build_system(s)
+    with pytest.raises(sf.ModelError, match="not one of this system's effects"):
+        system.add_free_entries(A, other.effects[0], rope.hessian_entries(members), vals[members].ravel())
+
 def test_von_mises_rising_branch_matches_analytic_equilibrium():
     L, H, EA = 1.0, 0.2, 1.0e4
     alpha = np.arctan(H / L)

@@ -117,6 +117,11 @@ class _AxialMembers(Effect):
     def hessian_pattern(self):
         return self._pattern
 
+    @staticmethod
+    def hessian_entries(members):
+        """Indices into :meth:`hessian_pattern` of the entries of ``members`` (36 each, in block order)."""
+        return (36 * np.asarray(members, dtype=np.int64)[:, None] + np.arange(36)).ravel()
+
     def hessian_values(self, q):
         d, length = self._geometry(q)
         N, k = self._force(length)
@@ -205,9 +210,26 @@ class Rope(_AxialMembers):
         gradient over all DOFs at ``dd = 0`` and Hessian values in the order of
         :meth:`hessian_pattern` (zero for the other ropes).
         """
-        n, gap, k, _ = self.linearised(q)
-        k = np.where(engaged, k, 0.0)
-        f = (k * gap)[:, None] * n
-        grad = scatter(self.n_dof, self.dofs, np.concatenate([-f, f], axis=1))
+        members = np.flatnonzero(engaged)
+        f, blocks = self.engaged_blocks(q, members)
+        grad = scatter(self.n_dof, self.dofs[members], f)
+        vals = np.zeros((len(self.L), 36))
+        vals[members] = blocks.reshape(-1, 36)
+        return grad, vals.ravel()
+
+    def engaged_blocks(self, q, members):
+        """:meth:`engaged_terms` of the ropes ``members`` only, at a cost that follows their number.
+
+        Returns ``(f, values)``: the forces on the members' six end-node DOFs,
+        shape (m, 6) (to scatter at ``self.dofs[members]``), and their Hessian
+        values at the :meth:`hessian_entries` of ``members``.
+        """
+        dofs = self.dofs[members]
+        d = q[dofs[:, 3:]] - q[dofs[:, :3]]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        n = d / length[:, None]
+        k = self.EA[members] / self.L[members]
+        f = (k * (length - self.L[members]))[:, None] * n
         K = k[:, None, None] * (n[:, :, None] * n[:, None, :])
-        return grad, two_node_blocks(K)
+        return np.concatenate([-f, f], axis=1), two_node_blocks(K)
+

@@ -64,6 +64,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..effects.axial import two_node_blocks
+from ..effects.base import scatter
 from ..errors import ModelError
 from .linear import CholeskyFactor, SingularMatrixError, factorize
 from .local_correction import LocalCorrection
@@ -1485,16 +1486,7 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
         if engaged is None:
             p = solver.solve(A, -r, eta)
         else:
-            g = np.zeros(system.n_dof)
-            vals = {}
-            for e, m in zip(ropes, engaged):
-                ge, vals[e] = e.engaged_terms(q, m)
-                g += ge
-            extra = system.assemble_free(vals)
-            if extra.nnz != A.nnz:  # both come from the tangent's fixed pattern
-                raise ModelError("relaxation: the engaged ropes' terms do not match the tangent's structure")
-            A_set = A.copy()
-            A_set.data += extra.data
+            A_set, g = _with_engaged(system, ropes, engaged, A, q)
             p = solver.solve(A_set, -(r + g[free]), eta)
         dq[free] = p
         masks = [e.stretched_by(q, dq) for e in ropes]
@@ -1510,6 +1502,23 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
     # a settled set can still shorten taut ropes below their rest length: the step holds them as
     # springs that push, so they are released on the patch around them
     return _settle_slack_set(ropes, graph, A, r, q, p, used)
+
+
+def _with_engaged(system, ropes, engaged, A, q):
+    """``A`` plus the springs of the ``engaged`` slack ropes, and their pulls (all DOFs).
+
+    Only the engaged ropes are evaluated and added, at their positions in the
+    tangent's fixed pattern: they are few, and a whole-net assembly of their
+    terms (mostly zeros) cost 1.2 s per round at 10^6 nodes.
+    """
+    g = np.zeros(system.n_dof)
+    out = A.copy()
+    for e, m in zip(ropes, engaged):
+        members = np.flatnonzero(m)
+        f, vals = e.engaged_blocks(q, members)
+        g += scatter(system.n_dof, e.dofs[members], f)
+        system.add_free_entries(out, e, e.hessian_entries(members), vals)
+    return out, g
 
 
 #: the ropes whose state a step gets wrong are settled on the nodes within SETTLE_RINGS
