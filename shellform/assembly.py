@@ -79,11 +79,15 @@ class System:
         self._full = _Pattern(rows, cols, (self.n_dof, self.n_dof))
         free_index = np.full(self.n_dof, -1, dtype=np.int64)
         free_index[self.free] = np.arange(self.free.size)
-        self._ff_mask = (free_index[rows] >= 0) & (free_index[cols] >= 0)
+        in_ff = (free_index[rows] >= 0) & (free_index[cols] >= 0)
         n_f = self.free.size
-        self._ff = _Pattern(free_index[rows[self._ff_mask]], free_index[cols[self._ff_mask]], (n_f, n_f))
+        self._ff = _Pattern(free_index[rows[in_ff]], free_index[cols[in_ff]], (n_f, n_f))
+        # the free pattern's slot of every entry, and one slot past the end (a bin that is dropped)
+        # for entries in a held row or column: effects' values then scatter without being masked
+        self._ff_slot = np.full(rows.size, self._ff.nnz, dtype=np.int64)
+        self._ff_slot[in_ff] = self._ff.slot
+        self._ff.slot = None  # replaced by the map above: one copy of it is 7e7 integers at 10^6 nodes
         self._measures = None  # pattern of the held measures' Jacobian, built on first use
-        self._slots = {}  # per effect: the tangent_free data position of each Hessian entry, built on first use
 
     # -- construction --------------------------------------------------------------
     def _pattern_triplets(self):
@@ -149,23 +153,20 @@ class System:
                 f -= e.gradient(self.q_ref)
         return f
 
-    def _hessian_vals(self, q, mask=None):
-        vals = [e.hessian_values(q) for e in self.effects]
-        vals.append(np.zeros(self.n_dof))
-        vals = np.concatenate(vals)
-        return vals if mask is None else vals[mask]
-
     def tangent(self, q: np.ndarray) -> sp.csr_matrix:
         """Hessian of the total potential over all DOFs (CSR).
 
         Loads are conservative and constant, so the tangent does not depend on
         the load factor.
         """
-        return self._full.matrix(self._hessian_vals(q))
+        vals = [e.hessian_values(q) for e in self.effects]
+        vals.append(np.zeros(self.n_dof))
+        return self._full.matrix(np.concatenate(vals))
 
     def tangent_free(self, q: np.ndarray) -> sp.csr_matrix:
         """Tangent restricted to the free DOFs (CSR), assembled directly."""
-        return self._ff.matrix(self._hessian_vals(q, self._ff_mask))
+        return self._free_matrix({k: e.hessian_values(q) for k, e in enumerate(self.effects)
+                                  if self._offsets[k + 1] > self._offsets[k]})
 
     def assemble_free(self, values: dict) -> sp.csr_matrix:
         """A matrix on the pattern of :meth:`tangent_free` from some effects' Hessian-shaped values.
@@ -175,12 +176,33 @@ class System:
         The result has exactly the tangent's sparsity structure, so its
         ``data`` can be added to a tangent's entry by entry.
         """
-        vals = []
-        for e in self.effects:
-            given = values.get(e)
-            vals.append(np.zeros(len(e.hessian_pattern()[0])) if given is None else np.asarray(given, dtype=float))
-        vals.append(np.zeros(self.n_dof))
-        return self._ff.matrix(np.concatenate(vals)[self._ff_mask])
+        return self._free_matrix({self._index(e): np.asarray(v, dtype=float) for e, v in values.items()})
+
+    def _index(self, effect: Effect) -> int:
+        """Position of ``effect`` in ``self.effects`` (by identity: two effects may compare equal)."""
+        k = next((i for i, e in enumerate(self.effects) if e is effect), None)
+        if k is None:
+            raise ModelError(f"effect {effect.name!r} is not one of this system's effects")
+        return k
+
+    def _free_matrix(self, values: dict) -> sp.csr_matrix:
+        """The free pattern's matrix from Hessian values by effect index (the other effects give zero)."""
+        nnz = self._ff.nnz
+        for k, v in values.items():
+            if v.shape != (self._offsets[k + 1] - self._offsets[k],):
+                raise ModelError(f"effect {self.effects[k].name!r}: {v.shape} Hessian values for "
+                                 f"{self._offsets[k + 1] - self._offsets[k]} pattern entries")
+        if len(values) == 1:
+            # the usual case (one kind of member): its values scatter as they are, without a copy
+            (k, weights), = values.items()
+            slot = self._ff_slot[self._offsets[k]:self._offsets[k + 1]]
+        else:
+            # one scatter in the order of the entries, so that every sum is added in a fixed order
+            weights = np.concatenate([values.get(k, np.zeros(self._offsets[k + 1] - self._offsets[k]))
+                                      for k in range(len(self.effects))])
+            slot = self._ff_slot[:self._offsets[-1]]
+        data = np.bincount(slot, weights=weights, minlength=nnz + 1)[:nnz]
+        return sp.csr_matrix((data, self._ff.indices, self._ff.indptr), shape=self._ff.shape)
 
     def add_free_entries(self, A: sp.csr_matrix, effect: Effect, entries: np.ndarray, values: np.ndarray) -> None:
         """Add values of some of an effect's Hessian entries to a matrix of :meth:`tangent_free`'s pattern.
@@ -206,20 +228,9 @@ class System:
         if A.shape != (n_f, n_f) or A.nnz != self._ff.nnz:
             raise ModelError(f"add_free_entries: the matrix ({A.shape[0]} x {A.shape[1]}, {A.nnz} entries) does not "
                              f"have the pattern of the free tangent ({n_f} x {n_f}, {self._ff.nnz} entries)")
-        k = next((i for i, e in enumerate(self.effects) if e is effect), None)
-        if k is None:
-            raise ModelError(f"add_free_entries: effect {effect.name!r} is not one of this system's effects")
-        if k not in self._slots:
-            lo, hi = self._offsets[k], self._offsets[k + 1]
-            # int32 where it fits: an effect's entries number 36 per rope (7e7 at 10^6 nodes)
-            kind = np.int32 if self._ff.nnz < 2**31 else np.int64
-            slots = np.full(hi - lo, -1, dtype=kind)
-            inside = self._ff_mask[lo:hi]
-            first = int(np.count_nonzero(self._ff_mask[:lo]))
-            slots[inside] = self._ff.slot[first:first + int(np.count_nonzero(inside))]
-            self._slots[k] = slots
-        slots = self._slots[k][entries]
-        free = slots >= 0
+        k = self._index(effect)
+        slots = self._ff_slot[self._offsets[k]:self._offsets[k + 1]][entries]
+        free = slots < self._ff.nnz
         np.add.at(A.data, slots[free], np.asarray(values, dtype=float)[free])
 
     def held_measures(self, q: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix] | None:

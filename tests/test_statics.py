@@ -74,6 +74,8 @@ def test_adding_a_few_members_entries_matches_a_whole_assembly():
     assert np.allclose(A.data, expected, rtol=1e-14, atol=1e-14)
     with pytest.raises(sf.ModelError, match="pattern of the free tangent"):
         system.add_free_entries(system.tangent(q), rope, rope.hessian_entries(members), vals[members].ravel())
+    with pytest.raises(sf.ModelError, match="Hessian values for"):
+        system.assemble_free({rope: vals.ravel()[:-1]})
     other = sf.build_system(s)
     with pytest.raises(sf.ModelError, match="not one of this system's effects"):
         system.add_free_entries(A, other.effects[0], rope.hessian_entries(members), vals[members].ravel())
