@@ -53,7 +53,6 @@ def test_tangent_is_the_derivative_of_the_residual():
     assert Kr.nnz == Kt.nnz and np.allclose((Kr + others).toarray(), Kff)
 
 
-
 def test_adding_a_few_members_entries_matches_a_whole_assembly():
     rng = np.random.default_rng(5)
     s = sf.Structure(rng.normal(size=(8, 3)))
@@ -79,6 +78,7 @@ def test_adding_a_few_members_entries_matches_a_whole_assembly():
     other = sf.build_system(s)
     with pytest.raises(sf.ModelError, match="not one of this system's effects"):
         system.add_free_entries(A, other.effects[0], rope.hessian_entries(members), vals[members].ravel())
+
 
 def test_von_mises_rising_branch_matches_analytic_equilibrium():
     L, H, EA = 1.0, 0.2, 1.0e4

@@ -232,4 +232,3 @@ class Rope(_AxialMembers):
         f = (k * (length - self.L[members]))[:, None] * n
         K = k[:, None, None] * (n[:, :, None] * n[:, None, :])
         return np.concatenate([-f, f], axis=1), two_node_blocks(K)
-
