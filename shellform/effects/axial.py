@@ -73,8 +73,10 @@ class _AxialMembers(Effect):
         """Members that carry force at this length."""
         return np.ones(length.shape, dtype=bool)
 
-    def _geometry(self, q):
-        d = q[self.dofs[:, 3:]] - q[self.dofs[:, :3]]
+    def _geometry(self, q, dofs=None):
+        """Member vectors and lengths (of the members whose end DOFs are ``dofs``, default all)."""
+        dofs = self.dofs if dofs is None else dofs
+        d = q[dofs[:, 3:]] - q[dofs[:, :3]]
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         return d, length
 
@@ -224,9 +226,7 @@ class Rope(_AxialMembers):
         shape (m, 6) (to scatter at ``self.dofs[members]``), and their Hessian
         values at the :meth:`hessian_entries` of ``members``.
         """
-        dofs = self.dofs[members]
-        d = q[dofs[:, 3:]] - q[dofs[:, :3]]
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        d, length = self._geometry(q, self.dofs[members])
         n = d / length[:, None]
         k = self.EA[members] / self.L[members]
         f = (k * (length - self.L[members]))[:, None] * n
