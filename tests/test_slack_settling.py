@@ -96,8 +96,8 @@ def settled(monkeypatch):
     changed = []
     original = relaxation._settle_slack_set
 
-    def counting(ropes, graph, A, r, q, p, used):
-        out = original(ropes, graph, A, r, q, p, used)
+    def counting(ropes, graph, A, r, q, p, used, geo=None):
+        out = original(ropes, graph, A, r, q, p, used, geo)
         changed.append(out[0] is not p)
         return out
 

@@ -191,14 +191,15 @@ class Rope(_AxialMembers):
         d, length = self._geometry(q)
         return d / length[:, None], length - self.L, self.EA / self.L, ~self._active(length)
 
-    def stretched_by(self, q, dq):
+    def stretched_by(self, q, dq, model=None):
         """Slack ropes that the straight step ``dq`` stretches in the linearised model.
 
         A slack rope has no stiffness, so a Newton step does not see it; when
         the step lengthens it past its rest length to first order
-        (``l + n . (dq_b - dq_a) > L``), the rope would resist it.
+        (``l + n . (dq_b - dq_a) > L``), the rope would resist it. ``model``
+        is ``self.linearised(q)`` when the caller has it already.
         """
-        n, gap, _, slack = self.linearised(q)
+        n, gap, _, slack = self.linearised(q) if model is None else model
         dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
         return slack & (gap + np.einsum("ij,ij->i", n, dd) > 0)
 

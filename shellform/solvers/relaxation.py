@@ -1475,8 +1475,10 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
     """
     free = system.free
     dq = np.zeros(system.n_dof)
+    # the ropes' linear model at q serves every round and the settling: q does not change here
+    geo = [e.linearised(q) for e in ropes]
     if engaged is not None:
-        engaged = [m & e.is_slack(q) for e, m in zip(ropes, engaged)]
+        engaged = [m & slack for m, (n, gap, k, slack) in zip(engaged, geo)]
         if not any(m.any() for m in engaged):
             engaged = None
     p = None
@@ -1489,7 +1491,7 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
             A_set, g = _with_engaged(system, ropes, engaged, A, q)
             p = solver.solve(A_set, -(r + g[free]), eta)
         dq[free] = p
-        masks = [e.stretched_by(q, dq) for e in ropes]
+        masks = [e.stretched_by(q, dq, model) for e, model in zip(ropes, geo)]
         if used is None and not any(m.any() for m in masks) or \
                 used is not None and all(np.array_equal(a, b) for a, b in zip(masks, used)):
             settled = True
@@ -1501,7 +1503,7 @@ def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, round
         used = [np.zeros(len(e.L), dtype=bool) for e in ropes]
     # a settled set can still shorten taut ropes below their rest length: the step holds them as
     # springs that push, so they are released on the patch around them
-    return _settle_slack_set(ropes, graph, A, r, q, p, used)
+    return _settle_slack_set(ropes, graph, A, r, q, p, used, geo)
 
 
 def _with_engaged(system, ropes, engaged, A, q):
@@ -1529,7 +1531,7 @@ SETTLE_SHARE = 0.3
 SETTLE_STEPS = 8
 
 
-def _settle_slack_set(ropes, graph, A, r, q, p, used):
+def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
     """Settle the slack set of a step on the nodes around the ropes whose state it gets wrong.
 
     ``p`` was solved with every taut rope and the slack ropes of ``used``
@@ -1546,13 +1548,14 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used):
     patch solves it, each local step with the ropes it currently stretches
     as springs, until no rope changes state (at most :data:`SETTLE_STEPS`).
     The ropes outside the patch keep their state, as the step does not
-    change there. Returns the step and the set of the slack ropes it
-    stretches (None when empty).
+    change there. ``geo`` is the ropes' ``linearised(q)``, when the caller
+    has it. Returns the step and the set of the slack ropes it stretches
+    (None when empty).
     """
     free_index = graph.free_index
     dq = np.zeros(free_index.size)
     dq[free_index >= 0] = p
-    geo = [e.linearised(q) for e in ropes]
+    geo = [e.linearised(q) for e in ropes] if geo is None else geo
 
     def taut_after(e, n, gap, members):
         dd = dq[e.dofs[members, 3:]] - dq[e.dofs[members, :3]]
