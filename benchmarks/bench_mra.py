@@ -27,6 +27,9 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 * the same scheme without settling the slack set on the patches around the ropes
   whose state a step's active-set rounds leave wrong (``--unsettled-sizes``), for
   the ratio it makes;
+* the same scheme cutting a step that a few ropes make overshoot, instead of
+  keeping it and relaxing the patch around them (``--unrepaired-sizes``), for
+  the ratio it makes;
 * the same scheme without the slack-rope active set (``--plain-sizes``) and
   with QDLDL's LDL^T instead of CHOLMOD (``--ldl-sizes``), for the ratio
   each makes;
@@ -42,6 +45,7 @@ own; runs go one after another. Prints a table and writes
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes 32 100 316]
       [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
       [--no-sweep-sizes 32 100 316] [--uncorrected-sizes 32 100 316] [--unsettled-sizes 32 100 316]
+      [--unrepaired-sizes 32 100 316]
       [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
 """
 
@@ -74,6 +78,7 @@ VARIANTS = {
     "no_sweeps": {"scheme": "implicit", "front_sweeps": False},
     "uncorrected": {"scheme": "implicit", "factor_correction": False},
     "unsettled": {"scheme": "implicit", "slack_settling": False},
+    "unrepaired": {"scheme": "implicit", "step_repair": False},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
     "coarse_net": {"scheme": "implicit", "start": "coarse_net"},  # form_find's own coarse net, from the net itself
@@ -116,6 +121,7 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
         "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
         "iterations": int(r.iterations), "factorizations": int(r.factorizations),
         "cg_iterations": int(r.linear_iterations), "local_steps": int(r.local_steps),
+        "repaired_steps": int(r.repaired_steps),
         "corrected_solves": int(r.corrected_solves), "residual_evaluations": int(r.residual_evaluations),
         "rejected_steps": int(r.rejected_steps), "wall_time_s": float(r.wall_time_s) + prep, "preparation_s": prep,
         "cpu_time_s": time.process_time() - c0, "build_s": build,
@@ -159,6 +165,7 @@ def main():
     ap.add_argument("--no-sweep-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--uncorrected-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--unsettled-sizes", type=int, nargs="*", default=[32, 100])
+    ap.add_argument("--unrepaired-sizes", type=int, nargs="*", default=[32, 100])
     ap.add_argument("--force-density-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-sizes", type=int, nargs="*", default=[32, 100, 316])
     ap.add_argument("--coarse-net-sizes", type=int, nargs="*", default=[32])
@@ -181,6 +188,7 @@ def main():
         print(f"{row['nodes']:>8d} {row['variant']:>8s} {row['start']:>13s} conv={row['converged']!s:5s} "
               f"it={row['iterations']:>7d} fact={row['factorizations']:>4d} cg={row['cg_iterations']:>6d} "
               f"local={row.get('local_steps', 0):>4d} corr={row.get('corrected_solves', 0):>4d} "
+              f"rep={row.get('repaired_steps', 0):>3d} "
               f"t={row['wall_time_s']:9.2f} s cpu={row['cpu_time_s']:9.2f} s mem={row['peak_memory_MB']:7.0f} MB "
               f"a={row['max_acceleration']:.1e}  slack={row['n_slack']}", flush=True)
 
@@ -193,6 +201,7 @@ def main():
         for variant, chosen in (("force_density", args.force_density_sizes), ("coarse", args.coarse_sizes),
                                 ("coarse_net", args.coarse_net_sizes), ("no_sweeps", args.no_sweep_sizes),
                                 ("uncorrected", args.uncorrected_sizes), ("unsettled", args.unsettled_sizes),
+                                ("unrepaired", args.unrepaired_sizes),
                                 ("plain", args.plain_sizes), ("ldl", args.ldl_sizes), ("before", args.before_sizes)):
             if n in chosen:
                 row_b, pos_b = run(n, variant, args.wall, args.verbose)
@@ -234,12 +243,12 @@ def main():
     (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": exps}, indent=2,
                                                    default=float) + "\n")
     lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | corrected solves "
-             "| local steps | wall [s] | CPU [s] | peak memory [MB] | max a [m/s^2] |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| local steps | repaired steps | wall [s] | CPU [s] | peak memory [MB] | max a [m/s^2] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['nodes']} | {r['variant']} ({r['scheme']}) | {r['start']} | {r['converged']} | "
                      f"{r['iterations']} | {r['factorizations']} | {r['cg_iterations']} | "
-                     f"{r.get('corrected_solves', '-')} | {r.get('local_steps', 0)} | "
+                     f"{r.get('corrected_solves', '-')} | {r.get('local_steps', 0)} | {r.get('repaired_steps', '-')} | "
                      f"{r['wall_time_s']:.2f} | "
                      f"{r['cpu_time_s']:.2f} | {r['peak_memory_MB']:.0f} | {r['max_acceleration']:.1e} |")
     if exps:

@@ -426,6 +426,9 @@ RELAXATION = Table(
                               "stretches outside its active set, taut ones it shortens below their rest length), "
                               "settle them by Newton steps on the step's model over the nodes within three ropes of "
                               "them (needs slack_active_set).", default=True),
+        "step_repair": Key("bool", "Implicit scheme: when a few ropes make a step of the whole net overshoot, keep "
+                           "the full step and relax the nodes within three ropes of them from there instead of "
+                           "shortening the whole step (needs slack_active_set).", default=True),
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
                      f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
                      "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "

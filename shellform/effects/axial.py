@@ -98,6 +98,10 @@ class _AxialMembers(Effect):
         member; the change of ``1/2 k d^2`` (``d`` the extension) is then
         ``1/2 k (d1 - d0)(d1 + d0)`` for a member active at both states.
         """
+        return float(np.sum(self.member_energy_changes(q0, q1)))
+
+    def member_energy_changes(self, q0, q1) -> np.ndarray:
+        """Each member's share of :meth:`energy_change`, shape (m,)."""
         x0 = q0[self.dofs[:, 3:]] - q0[self.dofs[:, :3]]
         dx = (q1 - q0)[self.dofs[:, 3:]] - (q1 - q0)[self.dofs[:, :3]]
         x1 = x0 + dx
@@ -108,7 +112,7 @@ class _AxialMembers(Effect):
         d1 = np.where(a1, l1 - self.L, 0.0)
         dl = np.einsum("ij,ij->i", dx, x0 + x1) / np.maximum(l0 + l1, 1e-300)
         diff = np.where(a0 & a1, dl, d1 - d0)
-        return 0.5 * float(np.sum((self.EA / self.L) * diff * (d1 + d0)))
+        return 0.5 * (self.EA / self.L) * diff * (d1 + d0)
 
     def gradient(self, q):
         d, length = self._geometry(q)
@@ -202,6 +206,26 @@ class Rope(_AxialMembers):
         n, gap, _, slack = self.linearised(q) if model is None else model
         dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
         return slack & (gap + np.einsum("ij,ij->i", n, dd) > 0)
+
+    def model_excess(self, q, dq, model=None):
+        """Each rope's change of energy along the step ``dq`` less that of the step's model of it.
+
+        The model is the one a relaxation step is solved with: a taut rope's
+        second-order expansion at ``q`` (its pull and its Hessian, axial and
+        geometric stiffness), a slack rope that the step stretches to first
+        order its spring ``1/2 (EA / L) (l - L + n . dd)^2``
+        (:meth:`engaged_terms`), any other slack rope nothing. A positive
+        value is energy the model did not foresee. ``model`` is
+        ``self.linearised(q)`` when the caller has it already.
+        """
+        n, gap, k, slack = self.linearised(q) if model is None else model
+        dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
+        nd = np.einsum("ij,ij->i", n, dd)
+        tension = k * gap
+        geometric = tension / (gap + self.L)
+        taylor = tension * nd + 0.5 * ((k - geometric) * nd**2 + geometric * np.einsum("ij,ij->i", dd, dd))
+        spring = 0.5 * k * np.maximum(gap + nd, 0.0) ** 2
+        return self.member_energy_changes(q, q + dq) - np.where(slack, spring, taylor)
 
     def engaged_terms(self, q, engaged):
         """Gradient and Hessian values of slack ropes modelled as taut springs.

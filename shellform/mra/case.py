@@ -41,7 +41,8 @@ DEFAULTS = {
     "solver": {"scheme": "implicit", "rtol": 1e-6, "velocity_tol": None, "acceleration_tol": None,
                "max_iterations": None, "max_wall_time": None, "damping": None, "linear_solver": "auto",
                "dt": None, "start": "auto", "slack_active_set": True,
-               "front_sweeps": True, "factor_correction": True, "slack_settling": True},
+               "front_sweeps": True, "factor_correction": True, "slack_settling": True,
+               "step_repair": True},
     "start": {"type": "flat", "depth": None, "control_heights": None, "coarsening": 4, "n_ctrl": 6,
               "compare_flat": False},
     "lengths": {"tolerance": 0.01, "target": None, "control": False, "n_classes": 3, "rounds": 4},
@@ -112,6 +113,7 @@ def _solver_options(p: dict, progress: Callable[[str], None] | None) -> dict:
             "linear_solver": s.pop("linear_solver"), "dt": s.pop("dt"), "start": s.pop("start"),
             "slack_active_set": bool(s.pop("slack_active_set")), "front_sweeps": bool(s.pop("front_sweeps")),
             "factor_correction": bool(s.pop("factor_correction")), "slack_settling": bool(s.pop("slack_settling")),
+            "step_repair": bool(s.pop("step_repair")),
             "max_wall_time": s.pop("max_wall_time"), "strain_limit": float(p["ropes"]["strain_limit"])}
     if s.get("max_iterations") is not None:
         opts["max_iterations"] = int(s["max_iterations"])

@@ -147,6 +147,10 @@ class RelaxationResult:
     corrected_solves : int
         Solves of the implicit scheme by CG with the kept factor corrected on
         the nodes whose tangent entries had changed (:class:`_SPDSolve`).
+    repaired_steps : int
+        Steps of the implicit scheme kept at full length with the patch
+        around the few ropes that made them overshoot relaxed from there
+        (:func:`_repair_full_step`); counted in ``iterations``.
     history : dict of lists
         ``iteration``, ``max_velocity``, ``max_acceleration``,
         ``residual_norm`` sampled every ``progress_every`` iterations.
@@ -177,6 +181,7 @@ class RelaxationResult:
     linear_iterations: int = 0
     local_steps: int = 0
     corrected_solves: int = 0
+    repaired_steps: int = 0
     history: dict = field(default_factory=dict)
     start: str = "reference"
 
@@ -863,6 +868,7 @@ def relax(
     front_sweeps: bool = True,
     factor_correction: bool = True,
     slack_settling: bool = True,
+    step_repair: bool = True,
     start: str = "auto",
     callback: Callable[[RelaxationProgress], bool | None] | None = None,
     progress_every: int | None = None,
@@ -944,6 +950,11 @@ def relax(
         around them (:func:`_settle_slack_set`). Needs
         ``slack_active_set``; like the front sweeps, only for nets of axial
         members under constant loads.
+    step_repair : bool
+        Implicit scheme only: when a few ropes make the whole net's step
+        overshoot, keep the full step and relax the patch of nodes around
+        them from there instead of cutting the step
+        (:func:`_repair_full_step`). Same conditions as ``slack_settling``.
     start : {"auto", "reference", "force_density"}
         Where to start when ``q0`` is not given: the reference state (the
         flat planform, as in the MRA paper) or the force-density shape of
@@ -984,7 +995,7 @@ def relax(
     if scheme == "implicit":
         return _run_implicit(*args, continuation=stiffness_continuation, fd_start=fd_start,
                              active_set=slack_active_set, sweeps=front_sweeps, correction=factor_correction,
-                             settling=slack_settling)
+                             settling=slack_settling, repair=step_repair)
     return {"rk4": _run_rk4, "kinetic": _run_kinetic}[scheme](*args)
 
 
@@ -1000,6 +1011,7 @@ class _Monitor:
         self.n_cg = 0
         self.n_local = 0
         self.n_corrected = 0
+        self.n_repaired = 0
         self.rejected = 0
 
     def measure(self, v_free, r_free, a_free=None):
@@ -1041,6 +1053,7 @@ class _Monitor:
             wall_time_s=time.perf_counter() - self.t0, reactions=self.system.reactions(q, self.lam),
             residual_evaluations=self.n_res, factorizations=self.n_fact, rejected_steps=self.rejected,
             linear_iterations=self.n_cg, local_steps=self.n_local, corrected_solves=self.n_corrected,
+            repaired_steps=self.n_repaired,
             history=self.history, start=self.st.start,
         )
 
@@ -1230,11 +1243,11 @@ def _continuation_scales(system, st, lam) -> list[float]:
 
 
 def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback, every, t0, continuation=True,
-                  fd_start=False, active_set=True, sweeps=True, correction=True, settling=True):
+                  fd_start=False, active_set=True, sweeps=True, correction=True, settling=True, repair=True):
     mon = _Monitor(system, st, "implicit", lam, callback, every, t0, max_wall)
     # without the active set a step of the whole net overshoots where it pulls slack ropes
     # taut, and the patches' steps, taken from there, only add to it (docs/theory-mra.md)
-    graph = NodeGraph(system) if (sweeps or settling) and active_set and patchable(system) else None
+    graph = NodeGraph(system) if (sweeps or settling or repair) and active_set and patchable(system) else None
     free = system.free
     solver = _SPDSolve(linear_solver, free.size, coords=st.q, dofs=free, correct=correction)
     scales = _continuation_scales(system, st, lam) if continuation else [1.0]
@@ -1256,7 +1269,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
         a_tol = st.a_tol if last else max(st.a_tol, STAGE_TOLERANCE * st.g_ref)
         v_tol = st.v_tol if last else np.inf
         out = _ptc(view, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set, graph,
-                   sweeps, settling)
+                   sweeps, settling, repair)
         q, h, v, success, message, vmax, amax, rnorm = out
         mon.n_fact = solver.factorizations
         mon.n_cg = solver.cg_iterations
@@ -1270,7 +1283,7 @@ def _run_implicit(system, st, lam, dt, max_it, max_wall, linear_solver, callback
 
 
 def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, active_set=True, graph=None,
-         sweeps=True, settling=True):
+         sweeps=True, settling=True, repair=True):
     """Pseudo-transient continuation on one System; returns the final state and status."""
     st = mon.st
     free = system.free
@@ -1338,17 +1351,33 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
             rr = residual(qq)
             return energy_change(system, q, qq, lam), rr, float(rr @ p)
 
-        alpha, dE, r_try = _line_search(at, slope, rnorm, tiny)
+        first = at(1.0)
+        repaired = None
+        if repair and graph is not None and ropes and not tiny and np.isfinite(first[0]) \
+                and ARMIJO * slope < first[0] <= -REPAIR_RATIO * slope:
+            repaired = _repair_full_step(system, graph, st, ropes, q, p, first[1], first[0], slope, h, f_ext,
+                                         e_floor)
+        if repaired is not None:
+            q_new, r_try, dE, excess = repaired
+            alpha = 1.0
+            mon.n_repaired += 1
+            # outside the patch the step followed its model
+            rho = (first[0] - excess) / pred if pred < 0 else 0.5
+        else:
+            alpha, dE, r_try = _line_search(at, slope, rnorm, tiny, first=first)
+            rho = dE / pred if (pred < 0 and alpha == 1.0) else 0.5
         if alpha == 0.0:
             mon.rejected += 1
             h *= 0.25
             tries += 1
             continue
         tries = 0
-        rho = dE / pred if (pred < 0 and alpha == 1.0) else 0.5
         v = alpha * p / h
-        q = q.copy()
-        q[free] += alpha * p
+        if repaired is not None:
+            q = q_new
+        else:
+            q = q.copy()
+            q[free] += alpha * p
         r = r_try
         K = None
         total["t"] += h
@@ -1420,39 +1449,129 @@ def _sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
             break
         moving = patch.dofs[patch.moving]
         ql = q[patch.dofs]
-        g0 = patch.internal_force(ql)
-        rl = (g0 - patch.f_ext)[patch.moving]
-        K = patch.tangent(ql)
-        A = K + sp.diags((1.0 / h**2 + st.damping / h) * st.m[free_index[moving]])
-        try:
-            p = CholeskyFactor(A).solve(-rl)
-        except SingularMatrixError:
+        step = _patch_step(patch, st.m[free_index[moving]], ql, h, st.damping, e_floor)
+        if step is None:
             break
-        slope = float(rl @ p)
-        if not (np.all(np.isfinite(p)) and slope < 0):
-            break
-        tiny = abs(slope + 0.5 * float(p @ (K @ p))) <= e_floor
-
-        def at(a, p=p, ql=ql, patch=patch):
-            q1 = ql.copy()
-            q1[patch.moving] += a * p
-            r1 = patch.residual(q1)
-            return patch.energy_change(ql, q1), r1, float(r1 @ p)
-
-        alpha, _, _ = _line_search(at, slope, float(np.linalg.norm(rl)), tiny)
-        if alpha == 0.0:
-            break
-        q1 = ql.copy()
-        q1[patch.moving] += alpha * p
+        q1 = step[0]
         # the residual changes only at the patch's DOFs, by its members' change of force
         index = free_index[patch.dofs]
         held = index >= 0
         index = index[held]
         undo = (moving, q[moving].copy(), index, r[index].copy())
         q[moving] = q1[patch.moving]
-        r[index] += (patch.internal_force(q1) - g0)[held]
+        r[index] += (patch.internal_force(q1) - patch.internal_force(ql))[held]
         steps += 1
     return steps
+
+
+def _patch_step(patch, m, ql, h, damping, e_floor):
+    """One pseudo-time step ``(M/h^2 + C/h + K) dq = -r`` on a patch, the rest of the net held.
+
+    ``m`` holds the masses of the patch's moving DOFs and ``ql`` the state of
+    its local DOFs. The step goes through the same line search as the global
+    one, on the whole net's potential, so it lowers it. Returns the new local
+    state and the change of potential, or None when no step lowers it.
+    """
+    rl = patch.residual(ql)
+    K = patch.tangent(ql)
+    A = K + sp.diags((1.0 / h**2 + damping / h) * m)
+    try:
+        p = CholeskyFactor(A).solve(-rl)
+    except SingularMatrixError:
+        return None
+    slope = float(rl @ p)
+    if not (np.all(np.isfinite(p)) and slope < 0):
+        return None
+    tiny = abs(slope + 0.5 * float(p @ (K @ p))) <= e_floor
+
+    def at(a):
+        q1 = ql.copy()
+        q1[patch.moving] += a * p
+        r1 = patch.residual(q1)
+        return patch.energy_change(ql, q1), r1, float(r1 @ p)
+
+    alpha, dE, _ = _line_search(at, slope, float(np.linalg.norm(rl)), tiny)
+    if alpha == 0.0:
+        return None
+    q1 = ql.copy()
+    q1[patch.moving] += alpha * p
+    return q1, dE
+
+
+#: a full step is repaired when it raises the potential by at most REPAIR_RATIO times the
+#: fall its slope promises, and the ropes that hold REPAIR_COVER of its excess over the
+#: step's model are at most REPAIR_SHARE of all ropes ...
+REPAIR_RATIO = 10.0
+REPAIR_COVER = 0.9
+REPAIR_SHARE = 0.01
+#: ... on the nodes within REPAIR_RINGS members of them, while their free DOFs are at most
+#: REPAIR_PATCH of all, in at most REPAIR_STEPS patch steps
+REPAIR_RINGS = 3
+REPAIR_PATCH = 0.03
+REPAIR_STEPS = 4
+
+
+def _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor):
+    """The full step, with the patch around the few ropes that make it overshoot relaxed from there.
+
+    Late in a stiffness stage the line search can cut the whole net's step to
+    about a half for the sake of a few ropes: taut ones with almost no
+    tension at the edge of a slack region, whose small geometric stiffness
+    lets the step move their nodes sideways by several per cent of their
+    length. That stretches them by far more than their strain, energy that
+    the step's quadratic model leaves out. The rest of the net follows the
+    model, but the cut step gives it only part of its Newton step, and the
+    steps alternate between full and cut ones. Here the full step is kept,
+    and the patch of nodes within :data:`REPAIR_RINGS` members of the ropes
+    that hold :data:`REPAIR_COVER` of the excess
+    (:meth:`~shellform.effects.axial.Rope.model_excess`) takes pseudo-time
+    steps from it, the rest of the net held, until the potential has fallen
+    by the line search's sufficient decrease.
+
+    Returns ``(q, r, dE, excess)`` -- the state, its residual (free DOFs),
+    the change of potential from ``q`` and the repaired ropes' excess -- or
+    None when the excess is not local or the patch does not make up for it.
+    """
+    free = system.free
+    dq = np.zeros(system.n_dof)
+    dq[free] = p
+    excess = np.concatenate([e.model_excess(q, dq) for e in ropes])
+    above = np.maximum(excess, 0.0)
+    total = float(above.sum())
+    if not total > 0:
+        return None
+    order = np.argsort(-excess)
+    count = int(np.searchsorted(np.cumsum(above[order]), REPAIR_COVER * total)) + 1
+    if count > REPAIR_SHARE * excess.size:
+        return None
+    worst = order[:count]
+    conn = np.concatenate([e.conn for e in ropes])
+    patch = Patch(system, graph, graph.within(np.unique(conn[worst]), REPAIR_RINGS), f_ext)
+    if not 0 < patch.n_moving <= REPAIR_PATCH * free.size:
+        return None
+    q1 = q.copy()
+    q1[free] += p
+    ql0 = q1[patch.dofs]
+    ql = ql0
+    m = st.m[graph.free_index[patch.dofs[patch.moving]]]
+    dE = dE1
+    for _ in range(REPAIR_STEPS):
+        step = _patch_step(patch, m, ql, h, st.damping, e_floor)
+        if step is None:
+            break
+        ql, change = step
+        dE += change
+        if dE <= ARMIJO * slope:
+            break
+    if not dE <= ARMIJO * slope:
+        return None
+    q1[patch.dofs[patch.moving]] = ql[patch.moving]
+    # the residual changes only at the patch's DOFs, by its members' change of force
+    index = graph.free_index[patch.dofs]
+    held = index >= 0
+    r = r1.copy()
+    r[index[held]] += (patch.internal_force(ql) - patch.internal_force(ql0))[held]
+    return q1, r, dE, float(excess[worst].sum())
 
 
 def _engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds=2, graph=None):
@@ -1649,7 +1768,11 @@ def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> f
     return total
 
 
-def _line_search(at, slope, rnorm0, tiny, max_eval=12):
+#: sufficient decrease of the line search: the potential falls by at least this share of the slope
+ARMIJO = 1e-4
+
+
+def _line_search(at, slope, rnorm0, tiny, max_eval=12, first=None):
     """Step length along a direction ``p`` for the convex potential ``phi(a) = Pi(q + a p)``.
 
     ``at(a)`` returns ``(phi(a) - phi(0), r(q + a p), r(q + a p) . p)``. The
@@ -1657,11 +1780,12 @@ def _line_search(at, slope, rnorm0, tiny, max_eval=12):
     round-off level (``tiny``), lowers the residual. Otherwise the minimiser of
     ``phi`` on ``(0, 1)`` is located by regula falsi on ``phi'(a) = r(q + a p) . p``
     (increasing, since ``phi`` is convex). Returns ``(alpha, phi(alpha) - phi(0), r)``;
-    alpha 0 means no decrease was found.
+    alpha 0 means no decrease was found. ``first`` is ``at(1.0)`` when the
+    caller has evaluated it already.
     """
-    dE1, r1, d1 = at(1.0)
+    dE1, r1, d1 = at(1.0) if first is None else first
     if np.isfinite(dE1) and np.all(np.isfinite(r1)):
-        if dE1 <= 1e-4 * slope or (d1 <= 0.0 and dE1 < 0.0):
+        if dE1 <= ARMIJO * slope or (d1 <= 0.0 and dE1 < 0.0):
             return 1.0, dE1, r1
         if tiny and float(np.linalg.norm(r1)) < rnorm0:
             return 1.0, dE1, r1
@@ -1687,7 +1811,7 @@ def _line_search(at, slope, rnorm0, tiny, max_eval=12):
             lo, dlo = a, da
         else:
             hi, dhi = a, da
-    if best[0] > 0 and best[1] <= 1e-4 * best[0] * slope:
+    if best[0] > 0 and best[1] <= ARMIJO * best[0] * slope:
         return best
     return 0.0, 0.0, None
 
