@@ -1352,17 +1352,19 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
             return energy_change(system, q, qq, lam), rr, float(rr @ p)
 
         first = at(1.0)
+        dE1, r1, d1 = first
         repaired = None
-        if repair and graph is not None and ropes and not tiny and np.isfinite(first[0]) \
-                and ARMIJO * slope < first[0] <= -REPAIR_RATIO * slope:
-            repaired = _repair_full_step(system, graph, st, ropes, q, p, first[1], first[0], slope, h, f_ext,
-                                         e_floor)
+        # only a full step that the line search would cut, and only when it overshoots moderately:
+        # far from equilibrium its excess is not local, and patches set up ropes the net must undo
+        if repair and graph is not None and ropes and not tiny and np.all(np.isfinite(r1)) \
+                and ARMIJO * slope < dE1 <= -REPAIR_RATIO * slope and not (d1 <= 0.0 and dE1 < 0.0):
+            repaired = _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor)
         if repaired is not None:
             q_new, r_try, dE, excess = repaired
             alpha = 1.0
             mon.n_repaired += 1
             # outside the patch the step followed its model
-            rho = (first[0] - excess) / pred if pred < 0 else 0.5
+            rho = (dE1 - excess) / pred if pred < 0 else 0.5
         else:
             alpha, dE, r_try = _line_search(at, slope, rnorm, tiny, first=first)
             rho = dE / pred if (pred < 0 and alpha == 1.0) else 0.5
