@@ -1354,10 +1354,9 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         first = at(1.0)
         dE1, r1, d1 = first
         repaired = None
-        # only a full step that the line search would cut, and only when it overshoots moderately:
-        # far from equilibrium its excess is not local, and patches set up ropes the net must undo
-        if repair and graph is not None and ropes and not tiny and np.all(np.isfinite(r1)) \
-                and ARMIJO * slope < dE1 <= -REPAIR_RATIO * slope and not (d1 <= 0.0 and dE1 < 0.0):
+        # only a full step that the line search would cut
+        if repair and graph is not None and ropes and not tiny and np.all(np.isfinite(r1)) and np.isfinite(dE1) \
+                and dE1 > ARMIJO * slope and not (d1 <= 0.0 and dE1 < 0.0):
             repaired = _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor)
         if repaired is not None:
             q_new, r_try, dE, excess = repaired
@@ -1500,35 +1499,35 @@ def _patch_step(patch, m, ql, h, damping, e_floor):
     return q1, dE
 
 
-#: a full step is repaired when it raises the potential by at most REPAIR_RATIO times the
-#: fall its slope promises, and the ropes that hold REPAIR_COVER of its excess over the
+#: a full step is repaired when the ropes that hold REPAIR_COVER of its excess over the
 #: step's model are at most REPAIR_SHARE of all ropes ...
-REPAIR_RATIO = 10.0
 REPAIR_COVER = 0.9
 REPAIR_SHARE = 0.01
 #: ... on the nodes within REPAIR_RINGS members of them, while their free DOFs are at most
 #: REPAIR_PATCH of all, in at most REPAIR_STEPS patch steps
 REPAIR_RINGS = 3
 REPAIR_PATCH = 0.03
-REPAIR_STEPS = 4
+REPAIR_STEPS = 8
 
 
 def _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor):
     """The full step, with the patch around the few ropes that make it overshoot relaxed from there.
 
-    Late in a stiffness stage the line search can cut the whole net's step to
-    about a half for the sake of a few ropes: taut ones with almost no
-    tension at the edge of a slack region, whose small geometric stiffness
-    lets the step move their nodes sideways by several per cent of their
-    length. That stretches them by far more than their strain, energy that
-    the step's quadratic model leaves out. The rest of the net follows the
-    model, but the cut step gives it only part of its Newton step, and the
-    steps alternate between full and cut ones. Here the full step is kept,
-    and the patch of nodes within :data:`REPAIR_RINGS` members of the ropes
-    that hold :data:`REPAIR_COVER` of the excess
+    The line search often cuts the whole net's step for the sake of a few
+    ropes: late in a stiffness stage to about a half, for taut ropes with
+    almost no tension at the edge of a slack region, whose small geometric
+    stiffness lets the step move their nodes sideways by several per cent of
+    their length. That stretches them by far more than their strain, energy
+    that the step's quadratic model leaves out. The rest of the net follows
+    the model, but the cut step gives it only part of its Newton step. Here
+    the full step is kept, and the patch of nodes within
+    :data:`REPAIR_RINGS` members of the ropes that hold
+    :data:`REPAIR_COVER` of the excess
     (:meth:`~shellform.effects.axial.Rope.model_excess`) takes pseudo-time
-    steps from it, the rest of the net held, until the potential has fallen
-    by the line search's sufficient decrease.
+    steps from it, the rest of the net held. It stops once the potential
+    has fallen by the line search's sufficient decrease and the patch's
+    largest acceleration is no larger than the largest outside it: a patch
+    left far from balance holds the next step of the whole net back.
 
     Returns ``(q, r, dE, excess)`` -- the state, its residual (free DOFs),
     the change of potential from ``q`` and the repaired ropes' excess -- or
@@ -1555,7 +1554,11 @@ def _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, 
     q1[free] += p
     ql0 = q1[patch.dofs]
     ql = ql0
-    m = st.m[graph.free_index[patch.dofs[patch.moving]]]
+    inside = graph.free_index[patch.dofs[patch.moving]]
+    m = st.m[inside]
+    outside = np.ones(free.size, dtype=bool)
+    outside[inside] = False
+    a_out = float(np.max(np.abs(r1[outside]) / st.m[outside], initial=0.0))
     dE = dE1
     for _ in range(REPAIR_STEPS):
         step = _patch_step(patch, m, ql, h, st.damping, e_floor)
@@ -1563,7 +1566,7 @@ def _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, 
             break
         ql, change = step
         dE += change
-        if dE <= ARMIJO * slope:
+        if dE <= ARMIJO * slope and float(np.max(np.abs(patch.residual(ql)) / m)) <= a_out:
             break
     if not dE <= ARMIJO * slope:
         return None
