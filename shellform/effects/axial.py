@@ -207,7 +207,7 @@ class Rope(_AxialMembers):
         dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
         return slack & (gap + np.einsum("ij,ij->i", n, dd) > 0)
 
-    def model_excess(self, q, dq, model=None):
+    def model_excess(self, q, dq):
         """Each rope's change of energy along the step ``dq`` less that of the step's model of it.
 
         The model is the one a relaxation step is solved with: a taut rope's
@@ -215,10 +215,9 @@ class Rope(_AxialMembers):
         geometric stiffness), a slack rope that the step stretches to first
         order its spring ``1/2 (EA / L) (l - L + n . dd)^2``
         (:meth:`engaged_terms`), any other slack rope nothing. A positive
-        value is energy the model did not foresee. ``model`` is
-        ``self.linearised(q)`` when the caller has it already.
+        value is energy the model did not foresee.
         """
-        n, gap, k, slack = self.linearised(q) if model is None else model
+        n, gap, k, slack = self.linearised(q)
         dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
         nd = np.einsum("ij,ij->i", n, dd)
         tension = k * gap

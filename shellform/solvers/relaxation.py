@@ -1356,7 +1356,7 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         repaired = None
         # only a full step that the line search would cut
         if repair and graph is not None and ropes and not tiny and np.all(np.isfinite(r1)) and np.isfinite(dE1) \
-                and dE1 > ARMIJO * slope and not (d1 <= 0.0 and dE1 < 0.0):
+                and not _sufficient_decrease(dE1, d1, slope):
             repaired = _repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor)
         if repaired is not None:
             q_new, r_try, dE, excess = repaired
@@ -1367,6 +1367,8 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
         else:
             alpha, dE, r_try = _line_search(at, slope, rnorm, tiny, first=first)
             rho = dE / pred if (pred < 0 and alpha == 1.0) else 0.5
+            q_new = q.copy()
+            q_new[free] += alpha * p
         if alpha == 0.0:
             mon.rejected += 1
             h *= 0.25
@@ -1374,11 +1376,7 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
             continue
         tries = 0
         v = alpha * p / h
-        if repaired is not None:
-            q = q_new
-        else:
-            q = q.copy()
-            q[free] += alpha * p
+        q = q_new
         r = r_try
         K = None
         total["t"] += h
@@ -1777,6 +1775,14 @@ def energy_change(system, q0: np.ndarray, q1: np.ndarray, lam: float = 1.0) -> f
 ARMIJO = 1e-4
 
 
+def _sufficient_decrease(dE1, d1, slope) -> bool:
+    """Whether the line search takes the full step as it is.
+
+    ``dE1`` and ``d1`` are the change of potential at the full step and its slope there.
+    """
+    return dE1 <= ARMIJO * slope or (d1 <= 0.0 and dE1 < 0.0)
+
+
 def _line_search(at, slope, rnorm0, tiny, max_eval=12, first=None):
     """Step length along a direction ``p`` for the convex potential ``phi(a) = Pi(q + a p)``.
 
@@ -1790,7 +1796,7 @@ def _line_search(at, slope, rnorm0, tiny, max_eval=12, first=None):
     """
     dE1, r1, d1 = at(1.0) if first is None else first
     if np.isfinite(dE1) and np.all(np.isfinite(r1)):
-        if dE1 <= ARMIJO * slope or (d1 <= 0.0 and dE1 < 0.0):
+        if _sufficient_decrease(dE1, d1, slope):
             return 1.0, dE1, r1
         if tiny and float(np.linalg.norm(r1)) < rnorm0:
             return 1.0, dE1, r1
