@@ -339,3 +339,11 @@ def test_coarse_starts_reach_the_flat_start_shape(tmp_path, start):
     assert coarse[-1].startswith(f"  coarse net of 15 nodes: at rest after {s['start']['coarse_iterations']} steps, ")
     flat = s["start"]["flat"]
     assert flat["converged"] and flat["max_position_difference"] < 1e-6
+
+
+@pytest.mark.parametrize("key", ["front_sweeps", "factor_correction", "slack_settling", "step_repair"])
+def test_a_scene_can_turn_each_solver_refinement_off(key):
+    from shellform.mra.case import _merge, _solver_options
+
+    assert _solver_options(_merge({}), None)[key] is True
+    assert _solver_options(_merge({"solver": {key: False}}), None)[key] is False

@@ -144,10 +144,3 @@ def test_sweeps_are_left_out_where_a_patch_cannot_hold_the_energy():
     _, rod = cantilever(n=6)
     assert not patchable(build_rod_system(rod))  # bending and twist are not axial members
     assert patchable(small_net(n=4))
-
-
-def test_a_scene_can_turn_the_sweeps_off():
-    from shellform.mra.case import _merge, _solver_options
-
-    assert _solver_options(_merge({}), None)["front_sweeps"] is True
-    assert _solver_options(_merge({"solver": {"front_sweeps": False}}), None)["front_sweeps"] is False

@@ -102,10 +102,3 @@ def test_relaxation_reaches_the_same_shape_with_and_without_the_correction():
     assert with_it.success and without.success
     assert without.corrected_solves == 0
     assert np.abs(with_it.q - without.q).max() < 1e-7
-
-
-def test_scene_key_reaches_the_relaxation():
-    from shellform.mra.case import _merge, _solver_options
-
-    assert _solver_options(_merge({}), None)["factor_correction"] is True
-    assert _solver_options(_merge({"solver": {"factor_correction": False}}), None)["factor_correction"] is False

@@ -122,10 +122,3 @@ def test_settling_does_not_depend_on_the_front_sweeps(settled):
     assert out.success
     assert any(settled), "without the front sweeps no step was settled"
     assert out.local_steps == 0  # the sweeps stay off
-
-
-def test_scene_key_reaches_the_relaxation():
-    from shellform.mra.case import _merge, _solver_options
-
-    assert _solver_options(_merge({}), None)["slack_settling"] is True
-    assert _solver_options(_merge({"solver": {"slack_settling": False}}), None)["slack_settling"] is False

@@ -110,10 +110,3 @@ def test_relaxation_reaches_the_same_shape_with_and_without_the_repair(repairs):
     assert with_it.success and without.success
     assert without.repaired_steps == 0
     assert np.abs(with_it.q - without.q).max() < 1e-7
-
-
-def test_scene_key_reaches_the_relaxation():
-    from shellform.mra.case import _merge, _solver_options
-
-    assert _solver_options(_merge({}), None)["step_repair"] is True
-    assert _solver_options(_merge({"solver": {"step_repair": False}}), None)["step_repair"] is False
