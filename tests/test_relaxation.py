@@ -196,6 +196,22 @@ def test_energy_change_matches_the_potential_and_its_taylor_expansion():
     assert energy_change(system, q, q + small) == pytest.approx(taylor, rel=1e-5)
 
 
+def test_kept_factor_budget_follows_the_measured_cost_ratios_not_the_clock():
+    from shellform.solvers.relaxation import REFACTOR_COST, iteration_budget
+
+    # half the measured refactorisation/iteration ratio at the measured sizes
+    for method, points in REFACTOR_COST.items():
+        for n, ratio in points:
+            assert iteration_budget(method, n) == round(min(max(0.5 * ratio, 5), 60))
+    # constant below the smallest measured size, growing as the last two sizes above the largest
+    assert iteration_budget("cholesky", 1_000) == iteration_budget("cholesky", 28_812) == 5
+    growth = np.log(23.0 / 9.9) / np.log(2_988_012 / 295_788)
+    assert iteration_budget("cholesky", 3e7) == round(0.5 * 23.0 * (3e7 / 2_988_012) ** growth)
+    assert iteration_budget("ldl", 1e8) == 60 and iteration_budget("amg", 10) == 10
+    # the same every time: a relaxation takes the same path in every run
+    assert len({iteration_budget("cholesky", 1e6) for _ in range(5)}) == 1
+
+
 def test_old_factor_is_tried_only_while_it_tends_to_work():
     from scipy.sparse import diags
 

@@ -512,6 +512,40 @@ def _force_density_parts(system, weights, lam, base):
 # ---------------------------------------------------------------------------
 # linear solves for the implicit scheme
 # ---------------------------------------------------------------------------
+#: Refactorisation time over the time of one preconditioned CG iteration (a solve with the
+#: factor and a product with the matrix) on net tangents of so many unknowns, measured in
+#: ``benchmarks/results/bench_factorization.md``: ``(unknowns, ratio)`` points per method.
+REFACTOR_COST = {
+    "cholesky": ((28_812, 7.6), (295_788, 9.9), (2_988_012, 23.0)),
+    "ldl": ((28_812, 22.0), (295_788, 104.0)),
+}
+#: the ratio assumed for the other methods
+OTHER_REFACTOR_COST = 20.0
+
+
+def iteration_budget(method: str, n: int) -> int:
+    """CG iterations worth trying with a kept factor before refactorising a matrix of ``n`` unknowns.
+
+    Half the cost of a refactorisation in iterations (:data:`REFACTOR_COST`,
+    interpolated log-log between the measured sizes, constant below the
+    smallest, growing as the last two above the largest), between 5 and 60:
+    a failed attempt then costs at most half a factorisation. Measured
+    sizes, not times of the run, set it, so that a relaxation takes the same
+    path in every run.
+    """
+    points = REFACTOR_COST.get(method)
+    if points is None:
+        ratio = OTHER_REFACTOR_COST
+    else:
+        log_n, log_r = np.log(np.array(points, dtype=float)).T
+        x = np.log(max(float(n), 1.0))
+        if x > log_n[-1]:
+            ratio = float(np.exp(log_r[-1] + (x - log_n[-1]) * (log_r[-1] - log_r[-2]) / (log_n[-1] - log_n[-2])))
+        else:
+            ratio = float(np.exp(np.interp(x, log_n, log_r)))
+    return int(round(min(max(0.5 * ratio, 5), 60)))
+
+
 class _SPDSolve:
     """Solves with ``A = K + sigma M`` (symmetric positive definite by construction).
 
@@ -519,10 +553,13 @@ class _SPDSolve:
     by conjugate gradients preconditioned with the old factor (a few cheap
     iterations while the tangent changes little), and refactorised only when
     that does not converge within ``cg_max`` iterations. By default
-    ``cg_max`` follows the measured costs: half as many iterations as one
-    factorisation costs in preconditioned iterations (between 5 and 60), so
-    a failed attempt never costs more than half a factorisation; when a
-    factorisation costs fewer than six solves, every step refactorises.
+    ``cg_max`` is half as many iterations as one refactorisation costs in
+    preconditioned iterations (between 5 and 60, :func:`iteration_budget`),
+    so a failed attempt never costs more than half a factorisation. That
+    cost ratio comes from a model of the unknowns, not from the times of the
+    run: with measured times the budget, and with it the path of the
+    relaxation, changed from run to run (19 to 23 steps on one 316 x 316
+    net, 37 to 50 on one 1000 x 1000 net).
     An attempt saves at least half a factorisation when it converges and
     loses about half of one when it does not, so it pays only while attempts
     converge more often than not. A running estimate of that rate (each
@@ -577,6 +614,7 @@ class _SPDSolve:
         self._perm = None
         self._lu = None
         self.method = method
+        self.n = int(n)
         self.reuse = reuse
         self.cg_max = cg_max
         self._qd = None
@@ -586,8 +624,6 @@ class _SPDSolve:
         self._ready = False
         self.factorizations = 0
         self.cg_iterations = 0
-        self._t_factor = None
-        self._t_iteration = None
         self.success_rate = 1.0  # running estimate that an attempt with the old factor converges
         self._passed = 0  # solves since the last attempt
         self.correct = correct
@@ -599,11 +635,7 @@ class _SPDSolve:
     def iteration_budget(self) -> int:
         if self.cg_max is not None:
             return int(self.cg_max)
-        if self._t_factor is None or not self._t_iteration:
-            return 10
-        budget = 0.5 * self._t_factor / self._t_iteration
-        # a factorisation worth fewer than six solves is cheaper than a likely failed attempt
-        return 0 if budget < 3 else int(min(max(budget, 5), 60))
+        return iteration_budget(self.method, self.n)
 
     def _worth_an_attempt(self) -> bool:
         """Whether to try CG with the kept factor before refactorising."""
@@ -617,7 +649,6 @@ class _SPDSolve:
 
     def _factorize(self, A: sp.csr_matrix) -> None:
         self._ready = False
-        t0 = time.perf_counter()
         if self.method == "ldl":
             import qdldl
 
@@ -666,7 +697,6 @@ class _SPDSolve:
             self._factor = factorize(A, self.method)
         self.factorizations += 1
         self._ready = True
-        self._t_factor = time.perf_counter() - t0
         if self.correct and self.method != "amg":
             self._keep(A)
 
@@ -683,11 +713,8 @@ class _SPDSolve:
 
     def _attempt(self, A, b, prec, rtol):
         """Conjugate gradients within the iteration budget; returns ``(x, converged)``."""
-        t0 = time.perf_counter()
         x, ok, its = _pcg(A, b, prec, rtol, self.iteration_budget)
         self.cg_iterations += its
-        if its:
-            self._t_iteration = (time.perf_counter() - t0) / its
         return x, ok
 
     def _attempt_preconditioner(self, A: sp.csr_matrix):
