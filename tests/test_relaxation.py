@@ -242,3 +242,43 @@ def test_old_factor_is_tried_only_while_it_tends_to_work():
     for _ in range(3):
         assert attempted(B)
     assert solver.success_rate > 0.5 and solver.factorizations == 6
+
+
+def test_rms_acceleration_weighs_the_nodes_acceleration_vectors_by_their_masses():
+    from shellform.solvers.relaxation import rms_acceleration
+
+    m = np.repeat([2.0, 6.0], 3)
+    a = np.array([3.0, 4.0, 0.0, 0.0, 0.0, 1.0])  # |a| = 5 and 1
+    assert rms_acceleration(-m * a, m) == pytest.approx(np.sqrt((2 * 25 + 6 * 1) / 8), rel=1e-14)
+
+
+def test_an_intermediate_stiffness_stage_ends_once_the_net_is_in_balance_on_the_whole(monkeypatch):
+    from shellform.solvers import relaxation
+
+    stages = []  # per stage: its tolerance on the RMS acceleration, the RMS values tested, the end's largest
+
+    def rms(r, m):
+        value = rms_of(r, m)
+        stages[-1][1].append(value)
+        return value
+
+    def ptc(*args, **kwargs):
+        stages.append((args[16] if len(args) > 16 else kwargs.get("rms_tol"), []))
+        out = ptc_of(*args, **kwargs)
+        stages[-1] = stages[-1] + (out[6],)
+        return out
+
+    rms_of, ptc_of = relaxation.rms_acceleration, relaxation._ptc
+    monkeypatch.setattr(relaxation, "rms_acceleration", rms)
+    monkeypatch.setattr(relaxation, "_ptc", ptc)
+    system = small_net(n=12, EA=1e7, sc=0.05, boundary=True)
+    res = relax(system, scheme="implicit")
+    assert res.success and res.max_acceleration <= res.acceleration_tol
+    *intermediate, last = stages
+    assert intermediate and last[0] is None  # the last stage ends at rest, node by node
+    for tol, tested, amax in intermediate:
+        assert tol == pytest.approx(relaxation.STAGE_TOLERANCE * 9.81)
+        # each stage ends at the first state whose RMS acceleration is within it
+        assert tested[-1] <= tol and all(value > tol for value in tested[:-1])
+    # and one of them while a few nodes were still out of balance by more than that
+    assert any(amax > tol for tol, _, amax in intermediate)
