@@ -242,4 +242,3 @@ def test_old_factor_is_tried_only_while_it_tends_to_work():
     for _ in range(3):
         assert attempted(B)
     assert solver.success_rate > 0.5 and solver.factorizations == 6
-

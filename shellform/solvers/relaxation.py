@@ -556,10 +556,10 @@ class _SPDSolve:
     ``cg_max`` is half as many iterations as one refactorisation costs in
     preconditioned iterations (between 5 and 60, :func:`iteration_budget`),
     so a failed attempt never costs more than half a factorisation. That
-    cost ratio comes from a model of the unknowns, not from the times of the
-    run: with measured times the budget, and with it the path of the
-    relaxation, changed from run to run (19 to 23 steps on one 316 x 316
-    net, 37 to 50 on one 1000 x 1000 net).
+    cost follows the number of unknowns (ratios measured on net tangents),
+    not the times of the run: with the run's times the budget, and with it
+    the path of the relaxation, changed from run to run (19 to 23 steps on
+    one 316 x 316 net, 37 to 50 on one 1000 x 1000 net).
     An attempt saves at least half a factorisation when it converges and
     loses about half of one when it does not, so it pays only while attempts
     converge more often than not. A running estimate of that rate (each
