@@ -46,7 +46,7 @@ Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes
       [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
       [--no-sweep-sizes 32 100 316] [--uncorrected-sizes 32 100 316] [--unsettled-sizes 32 100 316]
       [--unrepaired-sizes 32 100 316]
-      [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million]
+      [--coarse-net-sizes 32] [--explicit-sizes 16 32] [--explicit-wall 300] [--million] [--profile DIR]
 """
 
 from __future__ import annotations
@@ -103,8 +103,12 @@ def _progress(n, variant):
     return cb
 
 
-def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
-    """One relaxation in this (child) process; puts a row and the positions on ``out_q``."""
+def _run(n: int, variant: str, wall: float | None, out_q, verbose=False, profile=None):
+    """One relaxation in this (child) process; puts a row and the positions on ``out_q``.
+
+    With ``profile`` (a directory), the form finding runs under ``cProfile`` and
+    its statistics go to ``profile_<nodes>_<variant>.prof`` there.
+    """
     from shellform.mra import form_find
 
     t0 = time.perf_counter()
@@ -115,7 +119,14 @@ def _run(n: int, variant: str, wall: float | None, out_q, verbose=False):
     t1 = time.perf_counter()
     q0 = _coarse_start(net, n) if variant == "coarse" else None
     prep = time.perf_counter() - t1
-    res = form_find(net, q0, max_wall_time=wall, callback=cb, **VARIANTS[variant])
+    if profile:
+        import cProfile
+
+        profiler = cProfile.Profile()
+        res = profiler.runcall(form_find, net, q0, max_wall_time=wall, callback=cb, **VARIANTS[variant])
+        profiler.dump_stats(str(Path(profile) / f"profile_{n * n}_{variant}.prof"))
+    else:
+        res = form_find(net, q0, max_wall_time=wall, callback=cb, **VARIANTS[variant])
     r = res.relaxation
     row = {
         "nodes": n * n, "variant": variant, "scheme": r.scheme, "start": r.start, "converged": bool(r.success),
@@ -141,10 +152,10 @@ def _coarse_start(net, n: int):
     return coarse_force_density_start(form_find(make_net(max(round((n - 1) / 3), 2) + 1)), net)
 
 
-def run(n: int, variant: str, wall: float | None = None, verbose: bool = False):
+def run(n: int, variant: str, wall: float | None = None, verbose: bool = False, profile: str | None = None):
     ctx = mp.get_context("fork")  # the parent has not imported shellform: each child starts clean
     q = ctx.Queue()
-    p = ctx.Process(target=_run, args=(n, variant, wall, q, verbose))
+    p = ctx.Process(target=_run, args=(n, variant, wall, q, verbose, profile))
     p.start()
     row, pos = q.get()
     p.join()
@@ -176,6 +187,9 @@ def main():
                     help="run only the chosen variants at --sizes (one long run of a variant, joined later with --add-rows)")
     ap.add_argument("--wall", type=float, default=None, help="wall-time limit of each implicit run [s]")
     ap.add_argument("--verbose", action="store_true", help="print every implicit step to stderr")
+    ap.add_argument("--profile", default=None,
+                    help="a directory: run the fast scheme's relaxations under cProfile and write their statistics "
+                         "there (their times then include the profiler's overhead)")
     ap.add_argument("--add-rows", nargs="*", default=[],
                     help="a bench_mra.json of an earlier run whose rows join this one's (e.g. a long 10^5 run)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
@@ -194,7 +208,7 @@ def main():
 
     fast = {}
     for n in sizes:
-        row, pos = (None, None) if args.skip_fast else run(n, "fast", args.wall, args.verbose)
+        row, pos = (None, None) if args.skip_fast else run(n, "fast", args.wall, args.verbose, args.profile)
         if row is not None:
             fast[n] = (row, pos)
             report(row)
