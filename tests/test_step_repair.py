@@ -63,6 +63,53 @@ def test_slack_ropes_are_modelled_as_their_spring_when_stretched_and_as_nothing_
     assert rope.energy(q + sideways) > 0
 
 
+def test_the_piecewise_model_differs_from_the_taylor_model_only_for_ropes_the_step_switches():
+    k = 1e3
+    # a taut rope shortened straight past its rest length: the Taylor model keeps its spring pushing
+    taut, q = _rope([1.01, 0.0, 0.0], 1.0)
+    shorten = np.array([0.0, 0.0, 0.0, -0.015, 0.0, 0.0])  # to 0.995
+    assert taut.switch_model_change(q, shorten)[0] == pytest.approx(-0.5 * k * 0.005**2, rel=1e-9)
+    # straight moves: the piecewise model is the rope's energy itself
+    actual = taut.energy(q + shorten) - taut.energy(q)
+    assert _taylor(taut, q, shorten) + taut.switch_model_change(q, shorten)[0] == pytest.approx(actual, rel=1e-9)
+    assert taut.switch_model_change(q, -0.5 * shorten)[0] == 0.0  # still taut
+    # a slack rope stretched straight past its rest length: the Taylor model has nothing
+    slack, q = _rope([0.99, 0.0, 0.0], 1.0)
+    stretch = np.array([0.0, 0.0, 0.0, 0.03, 0.0, 0.0])  # to 1.02
+    assert slack.switch_model_change(q, stretch)[0] == pytest.approx(0.5 * k * 0.02**2, rel=1e-9)
+    actual = slack.energy(q + stretch) - slack.energy(q)
+    assert _taylor(slack, q, stretch) + slack.switch_model_change(q, stretch)[0] == pytest.approx(actual, rel=1e-9)
+    assert slack.switch_model_change(q, stretch / 6)[0] == 0.0  # still slack
+
+
+def test_the_piecewise_model_is_one_formula_for_all_ropes():
+    # Taylor model plus the switch term is sum 1/2 k (x)_+^2 - 1/2 k (gap)_+^2 + 1/2 (N / l) (|dd|^2 - (n.dd)^2)
+    rng = np.random.default_rng(3)
+    ends = rng.normal(size=(40, 3))
+    rest = np.linalg.norm(ends, axis=1) * rng.uniform(0.97, 1.03, 40)  # about half of them slack
+    n_dof = 3 * 41
+    rope = Rope(n_dof, [[0, i + 1] for i in range(40)], np.full(40, 1e3), rest)
+    q = np.concatenate([np.zeros(3), ends.ravel()])
+    dq = 0.02 * rng.normal(size=n_dof)
+    rows, cols = rope.hessian_pattern()
+    H = np.zeros((n_dof, n_dof))
+    np.add.at(H, (rows, cols), rope.hessian_values(q))
+    taylor = float(rope.gradient(q) @ dq + 0.5 * dq @ H @ dq)
+    d = ends
+    length = np.linalg.norm(d, axis=1)
+    n = d / length[:, None]
+    dd = dq[3:].reshape(-1, 3) - dq[:3]
+    gap = length - rest
+    x = gap + np.einsum("ij,ij->i", n, dd)
+    k = 1e3 / rest
+    tension = k * np.maximum(gap, 0.0)
+    model = (0.5 * k * (np.maximum(x, 0.0) ** 2 - np.maximum(gap, 0.0) ** 2)
+             + 0.5 * tension / length * (np.einsum("ij,ij->i", dd, dd) - np.einsum("ij,ij->i", n, dd) ** 2))
+    switched = rope.switch_model_change(q, dq)
+    assert 0 < np.count_nonzero(switched) < 40
+    assert taylor + switched.sum() == pytest.approx(model.sum(), rel=1e-10)
+
+
 @pytest.fixture
 def repairs(monkeypatch):
     """Every repair of a relaxation: its arguments and its outcome."""

@@ -226,6 +226,25 @@ class Rope(_AxialMembers):
         spring = 0.5 * k * np.maximum(gap + nd, 0.0) ** 2
         return self.member_energy_changes(q, q + dq) - np.where(slack, spring, taylor)
 
+    def switch_model_change(self, q, dq, model=None):
+        """Each rope's change of energy in the step's piecewise model less that in its Taylor model.
+
+        The Taylor model at ``q`` (the tangent and the pull) gives a taut rope
+        its axial spring whichever way the step moves it, and a slack rope
+        nothing. The piecewise model gives every rope the spring
+        ``1/2 (EA / L) (l - L + n . dd)_+^2`` and a taut rope its geometric
+        stiffness as well: the convex model that a relaxation step is solved
+        in once its slack ropes are engaged and settled. The two differ only
+        for ropes that the step switches: ``+1/2 k x^2`` for a slack rope it
+        stretches to ``x = l - L + n . dd > 0``, ``-1/2 k x^2`` for a taut
+        rope it shortens to ``x < 0``. ``model`` is ``self.linearised(q)``
+        when the caller has it already.
+        """
+        n, gap, k, slack = self.linearised(q) if model is None else model
+        dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
+        x = gap + np.einsum("ij,ij->i", n, dd)
+        return 0.5 * k * np.where(slack, np.maximum(x, 0.0) ** 2, -np.minimum(x, 0.0) ** 2)
+
     def engaged_terms(self, q, engaged):
         """Gradient and Hessian values of slack ropes modelled as taut springs.
 

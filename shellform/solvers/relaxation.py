@@ -1371,6 +1371,13 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
             tries += 1
             continue
         pred = slope + 0.5 * float(p @ (K @ p))
+        if ropes:
+            # the step was solved in the ropes' piecewise model, not the tangent's: judged
+            # against the tangent alone, a step that lets taut ropes go slack seems to
+            # predict a rise, and the pseudo step was held for many steps at 4e5 nodes
+            dq = np.zeros(system.n_dof)
+            dq[free] = p
+            pred += sum(float(e.switch_model_change(q, dq).sum()) for e in ropes)
         tiny = abs(pred) <= e_floor
         def at(a, p=p):
             qq = q.copy()
