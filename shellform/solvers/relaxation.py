@@ -838,6 +838,15 @@ def _dof_order(A: sp.csr_matrix, q: np.ndarray, free: np.ndarray) -> np.ndarray:
     return np.lexsort((free, rank[local]))
 
 
+def _with_values(A: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
+    """A CSR matrix of ``A``'s pattern with the values ``data``, sharing its index arrays.
+
+    Only the values of a tangent change from step to step; a full copy would
+    also copy the indices, 0.2 s a time at 10^6 nodes.
+    """
+    return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
+
+
 def _pcg(A, b, prec, rtol, maxiter):
     """Preconditioned conjugate gradients from zero; returns ``(x, converged, iterations)``.
 
@@ -1349,7 +1358,7 @@ def _ptc(system, mon, solver, q, h, lam, a_tol, v_tol, max_it, total, diag_pos, 
             if diag_pos[0] is None:
                 diag_pos[0] = _diagonal_positions(K)
         # backward-Euler step from rest with viscous damping: (M/h^2 + C/h + K) dq = -r
-        A = K.copy()
+        A = _with_values(K, K.data.copy())
         A.data[diag_pos[0]] += (1.0 / h**2 + st.damping / h) * m
         # inexact steps far from equilibrium, accurate ones close to it
         eta = min(1e-2, max(1e-10, float(np.sqrt(rnorm / f_scale))))
@@ -1670,7 +1679,7 @@ def _with_engaged(system, ropes, engaged, A, q):
     terms (mostly zeros) cost 1.2 s per round at 10^6 nodes.
     """
     g = np.zeros(system.n_dof)
-    out = A.copy()
+    out = _with_values(A, A.data.copy())
     for e, m in zip(ropes, engaged):
         members = np.flatnonzero(m)
         f, vals = e.engaged_blocks(q, members)
