@@ -95,9 +95,8 @@ def test_the_piecewise_model_is_one_formula_for_all_ropes():
     H = np.zeros((n_dof, n_dof))
     np.add.at(H, (rows, cols), rope.hessian_values(q))
     taylor = float(rope.gradient(q) @ dq + 0.5 * dq @ H @ dq)
-    d = ends
-    length = np.linalg.norm(d, axis=1)
-    n = d / length[:, None]
+    length = np.linalg.norm(ends, axis=1)
+    n = ends / length[:, None]
     dd = dq[3:].reshape(-1, 3) - dq[:3]
     gap = length - rest
     x = gap + np.einsum("ij,ij->i", n, dd)

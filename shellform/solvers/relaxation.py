@@ -842,7 +842,7 @@ def _with_values(A: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
     """A CSR matrix of ``A``'s pattern with the values ``data``, sharing its index arrays.
 
     Only the values of a tangent change from step to step; a full copy would
-    also copy the indices, 0.2 s a time at 10^6 nodes.
+    also copy the indices, 0.2 s each time at 10^6 nodes.
     """
     return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
 
