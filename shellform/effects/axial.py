@@ -73,10 +73,14 @@ class _AxialMembers(Effect):
         """Members that carry force at this length."""
         return np.ones(length.shape, dtype=bool)
 
+    def _end_difference(self, v, dofs=None):
+        """Second end minus first end of a DOF vector ``v``, per member (of ``dofs``, default all)."""
+        dofs = self.dofs if dofs is None else dofs
+        return v[dofs[:, 3:]] - v[dofs[:, :3]]
+
     def _geometry(self, q, dofs=None):
         """Member vectors and lengths (of the members whose end DOFs are ``dofs``, default all)."""
-        dofs = self.dofs if dofs is None else dofs
-        d = q[dofs[:, 3:]] - q[dofs[:, :3]]
+        d = self._end_difference(q, dofs)
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         return d, length
 
@@ -102,8 +106,8 @@ class _AxialMembers(Effect):
 
     def member_energy_changes(self, q0, q1) -> np.ndarray:
         """Each member's share of :meth:`energy_change`, shape (m,)."""
-        x0 = q0[self.dofs[:, 3:]] - q0[self.dofs[:, :3]]
-        dx = (q1 - q0)[self.dofs[:, 3:]] - (q1 - q0)[self.dofs[:, :3]]
+        x0 = self._end_difference(q0)
+        dx = self._end_difference(q1 - q0)
         x1 = x0 + dx
         l0 = np.sqrt(np.einsum("ij,ij->i", x0, x0))
         l1 = np.sqrt(np.einsum("ij,ij->i", x1, x1))
@@ -204,7 +208,7 @@ class Rope(_AxialMembers):
         is ``self.linearised(q)`` when the caller has it already.
         """
         n, gap, _, slack = self.linearised(q) if model is None else model
-        dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
+        dd = self._end_difference(dq)
         return slack & (gap + np.einsum("ij,ij->i", n, dd) > 0)
 
     def model_excess(self, q, dq):
@@ -218,7 +222,7 @@ class Rope(_AxialMembers):
         value is energy the model did not foresee.
         """
         n, gap, k, slack = self.linearised(q)
-        dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
+        dd = self._end_difference(dq)
         nd = np.einsum("ij,ij->i", n, dd)
         tension = k * gap
         geometric = tension / (gap + self.L)
@@ -241,7 +245,7 @@ class Rope(_AxialMembers):
         when the caller has it already.
         """
         n, gap, k, slack = self.linearised(q) if model is None else model
-        dd = dq[self.dofs[:, 3:]] - dq[self.dofs[:, :3]]
+        dd = self._end_difference(dq)
         x = gap + np.einsum("ij,ij->i", n, dd)
         return 0.5 * k * np.where(slack, np.maximum(x, 0.0) ** 2, -np.minimum(x, 0.0) ** 2)
 
