@@ -68,6 +68,8 @@ import numpy as np  # noqa: E402
 SIDE = 30.0
 EA = 1.0e7
 SLACK = 0.05
+#: the fit "to 1e5" is over the sizes up to this many nodes (the standard 10^3, 10^4, 10^5)
+SMALL_FIT_NODES = 120_000
 
 # the variants of a run: relax options
 VARIANTS = {
@@ -167,6 +169,24 @@ def growth(rows, key):
     return float(np.polyfit(x, np.log([r[key] for r in rows]), 1)[0])
 
 
+def growth_between(rows) -> list[dict]:
+    """Exponents of wall time, steps and wall time per step from each size of ``rows`` to the next.
+
+    Wall time = steps x time per step, so the two exponents add up to the
+    first: they tell whether a steeper decade comes from more steps or from
+    dearer ones (the factorisation's fill grows faster than the nodes).
+    """
+    out = []
+    for a, b in zip(rows, rows[1:]):
+        span = np.log(b["nodes"] / a["nodes"])
+        per_step = [r["wall_time_s"] / max(r["iterations"], 1) for r in (a, b)]
+        out.append({"from_nodes": a["nodes"], "to_nodes": b["nodes"],
+                    "wall_time_s": float(np.log(b["wall_time_s"] / a["wall_time_s"]) / span),
+                    "iterations": float(np.log(b["iterations"] / a["iterations"]) / span),
+                    "wall_time_per_iteration": float(np.log(per_step[1] / per_step[0]) / span)})
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="*", default=[32, 100, 316])
@@ -235,27 +255,39 @@ def main():
             row["time_ratio_to_fast"] = row["wall_time_s"] / ref_row["wall_time_s"]
             report(row)
     fit_nodes = {n * n for n in sizes}
+    joined = []
+    measured = bool(rows)
     for path in args.add_rows:
-        added = json.loads(Path(path).read_text())["rows"]
+        data = json.loads(Path(path).read_text())
+        added = data["rows"]
+        joined.append(data.get("meta", {}))
         rows.extend(added)
         # the sizes of the fit are those of the fast rows; an explicit run's size is a reference only
         fit_nodes |= {r["nodes"] for r in added if r["variant"] == "fast" and not r.get("explicit_reference_only")}
     fit = sorted((r for r in rows if r["variant"] == "fast" and r["converged"] and r["nodes"] in fit_nodes),
                  key=lambda r: r["nodes"])
-    exps = None
+    exps, between = None, []
     if len(fit) >= 2:
         exps = {k + "_exponent": growth(fit, k) for k in ("wall_time_s", "cpu_time_s", "iterations",
                                                            "factorizations", "peak_memory_MB")}
         if len(fit) >= 3:
             exps["wall_time_s_exponent_last_two"] = growth(fit[-2:], "wall_time_s")
+        small = [r for r in fit if r["nodes"] <= SMALL_FIT_NODES]
+        if 2 <= len(small) < len(fit):
+            exps["wall_time_s_exponent_to_1e5"] = growth(small, "wall_time_s")
         print("growth with the number of nodes: " + ", ".join(f"{k} {v:.2f}" for k, v in exps.items()))
+        between = growth_between(fit)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    # a run that only joins earlier rows reports the load of the run that measured them
+    load = os.getloadavg() if measured or not joined else joined[0].get("load_average_at_end", os.getloadavg())
     meta = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
-            "load_average_at_end": os.getloadavg(), "side_m": SIDE, "EA_N": EA, "slack": SLACK,
+            "load_average_at_end": load, "side_m": SIDE, "EA_N": EA, "slack": SLACK,
             "command": "python benchmarks/bench_mra.py " + " ".join(os.sys.argv[1:])}
-    (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": exps}, indent=2,
-                                                   default=float) + "\n")
+    if joined:
+        meta["joined_from"] = joined
+    (out / "bench_mra.json").write_text(json.dumps({"meta": meta, "rows": rows, "growth": exps,
+                                                   "growth_between": between}, indent=2, default=float) + "\n")
     lines = ["| nodes | variant | start | converged | iterations | factorizations | CG its | corrected solves "
              "| local steps | repaired steps | wall [s] | CPU [s] | peak memory [MB] | max a [m/s^2] |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -268,7 +300,13 @@ def main():
     if exps:
         lines += ["", "Growth exponents (fast scheme, fitted over the converged sizes): "
                   + ", ".join(f"{k} {v:.2f}" for k, v in exps.items())]
-    lines += ["", f"Load average at the end: {', '.join(f'{v:.2f}' for v in os.getloadavg())} (2 cores, shared)."]
+    if between:
+        lines += ["", "Growth from each size to the next (fast scheme; the exponents of the steps and of the "
+                  "time per step add up to that of the wall time):", "",
+                  "| nodes | wall time | steps | wall time per step |", "|---|---|---|---|"]
+        lines += [f"| {g['from_nodes']} to {g['to_nodes']} | N^{g['wall_time_s']:.2f} | N^{g['iterations']:.2f} | "
+                  f"N^{g['wall_time_per_iteration']:.2f} |" for g in between]
+    lines += ["", f"Load average at the end: {', '.join(f'{v:.2f}' for v in load)} (2 cores, shared)."]
     (out / "bench_mra.md").write_text("\n".join(lines) + "\n")
 
 
