@@ -256,3 +256,21 @@ def test_old_factor_is_tried_only_while_it_tends_to_work():
     for _ in range(3):
         assert attempted(B)
     assert solver.success_rate > 0.5 and solver.factorizations == 6
+
+
+def test_line_search_bisects_when_the_slope_does_not_grow_along_the_step():
+    # At round-off level the potential can rise at the full step while its slope there
+    # equals the slope at the start; the secant then has no root and the search bisects.
+    from shellform.solvers.relaxation import _line_search
+
+    calls = []
+
+    def at(a):
+        calls.append(a)
+        if a == 1.0:
+            return 1.0, np.zeros(3), -1.0  # a rise, with the start's slope
+        return -a + a * a, np.zeros(3), -1.0 + 2.0 * a  # phi = -a + a^2 elsewhere
+
+    alpha, dE, r = _line_search(at, slope=-1.0, rnorm0=1.0, tiny=False)
+    assert calls == [1.0, 0.5]
+    assert alpha == 0.5 and dE == -0.25 and r is not None

@@ -1848,7 +1848,8 @@ def _line_search(at, slope, rnorm0, tiny, max_eval=12, first=None):
     hi, dhi = 1.0, d1 if np.isfinite(d1) else np.inf
     best = (0.0, 0.0, None)
     for _ in range(max_eval):
-        if np.isfinite(dhi):
+        # at round-off level phi' need not grow along the step: bisect where the secant has no root
+        if np.isfinite(dhi) and dhi > dlo:
             a = hi - dhi * (hi - lo) / (dhi - dlo)
             a = min(max(a, lo + 0.05 * (hi - lo)), hi - 0.05 * (hi - lo))
         else:
