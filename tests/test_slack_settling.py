@@ -7,6 +7,7 @@ from shellform.solvers import relaxation
 from shellform.solvers.patch import NodeGraph
 from shellform.solvers.relaxation import _diagonal_positions, _engage_slack_ropes, _settle_slack_set, _SPDSolve, relax
 
+from shellform import Structure, build_system
 from test_relaxation import small_net
 
 
@@ -122,3 +123,54 @@ def test_settling_does_not_depend_on_the_front_sweeps(settled):
     assert out.success
     assert any(settled), "without the front sweeps no step was settled"
     assert out.local_steps == 0  # the sweeps stay off
+
+
+def line_held_sideways(n=20, gap=1e-12, push=1e-5):
+    """A taut line of ``n`` free nodes, each held sideways by a cross rope taut with almost no
+    tension, and a push at its first node towards the cross ropes' anchors.
+
+    At rest every cross rope is slack (the line bends towards the anchors along its whole
+    length), but with every cross rope as a stiff spring a step only compresses the first
+    one: each released rope lets the push reach the next node.
+    """
+    x = np.arange(n + 2, dtype=float)
+    line = np.column_stack([x, np.zeros(n + 2), np.zeros(n + 2)])
+    anchors = np.column_stack([x[1:-1], np.ones(n), np.zeros(n)])
+    s = Structure(np.vstack([line, anchors]))
+    s.add_ropes(np.column_stack([np.arange(n + 1), np.arange(1, n + 2)]), EA=1e6, rest_length=0.99)  # 1e4 N
+    s.add_ropes(np.column_stack([np.arange(1, n + 1), n + 2 + np.arange(n)]), EA=1e6, rest_length=1.0 - gap)
+    s.fix(np.concatenate([[0, n + 1], n + 2 + np.arange(n)]))
+    s.add_load([1], [0.0, push, 0.0])
+    return build_system(s)
+
+
+def test_settling_releases_a_chain_of_barely_taut_ropes(monkeypatch):
+    n = 60
+    system = line_held_sideways(n)
+    q = system.q_ref
+    K = system.tangent_free(q)
+    K.sort_indices()
+    A = K.copy()
+    A.data[_diagonal_positions(K)] += 1e-6 * K.diagonal().mean()
+    r = system.residual(q)[system.free]
+    ropes = [e for e in system.effects if hasattr(e, "stretched_by")]
+    assert not ropes[1].is_slack(q).any()
+    # a patch around the whole chain, so that only the number of local steps limits the settling
+    monkeypatch.setattr(relaxation, "SETTLE_SHARE", 1.0)
+    monkeypatch.setattr(relaxation, "SETTLE_RINGS", 2 * n)
+
+    def step():
+        solver = _SPDSolve("cholesky", system.free.size)
+        p, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, graph=NodeGraph(system))
+        return p, _released(system, ropes, q, p)
+
+    p, released = step()
+    assert released[1].all()
+    # the step is the minimiser of its model with the whole chain released
+    none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
+    g = _model_gradient(system, ropes, A, r, q, p, none, released)
+    assert np.linalg.norm(g) < 1e-8 * np.linalg.norm(r)
+    # the local steps release the chain a few ropes at a time: eight are not enough
+    monkeypatch.setattr(relaxation, "SETTLE_STEPS", 8)
+    _, released = step()
+    assert 0 < released[1].sum() < n
