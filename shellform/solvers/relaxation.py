@@ -1691,29 +1691,10 @@ def _with_engaged(system, ropes, engaged, A, q):
 #: the ropes whose state a step gets wrong are settled on the nodes within SETTLE_RINGS
 #: members of them, while their free DOFs are at most SETTLE_SHARE of
 #: all, in at most SETTLE_STEPS local Newton steps: a line held sideways by a chain of barely
-#: taut ropes is released about two ropes per step (docs/theory-mra.md) ...
+#: taut ropes is released about two ropes per step (docs/theory-mra.md)
 SETTLE_RINGS = 3
 SETTLE_SHARE = 0.3
 SETTLE_STEPS = 40
-#: ... but in no more steps than cost SETTLE_COST of a factorisation of the whole net's matrix,
-#: and in at least SETTLE_MIN_STEPS (:func:`settle_steps`)
-SETTLE_COST = 0.5
-SETTLE_MIN_STEPS = 8
-
-
-def settle_steps(patch_dofs: int, dofs: int) -> int:
-    """Local Newton steps a settling may take on a patch of ``patch_dofs`` of ``dofs`` free DOFs.
-
-    Each step factorises the patch's matrix. A factorisation of a surface-like
-    net costs about as its DOFs to the power 1.5 (nested dissection; CHOLMOD's
-    refactorisations grew as 1.44 from 10^5 to 10^6 nodes), so a patch of a
-    share ``s`` of the DOFs costs ``s^1.5`` of the whole net's. The steps stop
-    at :data:`SETTLE_COST` of that, within :data:`SETTLE_MIN_STEPS` and
-    :data:`SETTLE_STEPS`: a small patch may take them all, one of 30 % of the
-    net (the most :data:`SETTLE_SHARE` lets through) takes the minimum.
-    """
-    worth = SETTLE_COST * (max(dofs, 1) / max(patch_dofs, 1)) ** 1.5
-    return int(min(SETTLE_STEPS, max(SETTLE_MIN_STEPS, worth)))
 
 
 def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
@@ -1731,7 +1712,7 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
     r.p`` with the taut ropes' springs taken out of ``A``, plus ``sum 1/2
     (EA/L) (l - L + n.dp)_+^2`` over all ropes. Semismooth Newton on the
     patch solves it, each local step with the ropes it currently stretches
-    as springs, until no rope changes state (at most :func:`settle_steps`;
+    as springs, until no rope changes state (at most :data:`SETTLE_STEPS`;
     a chain of taut ropes with almost no tension along a line that the step
     moves sideways is released from its ends, about two ropes per local
     step). The ropes outside the patch keep their state, as the step does not
@@ -1772,7 +1753,7 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
     A_loc = A_rows[:, rows]
     members = graph.members_of(nodes)
     p = p.copy()
-    for _ in range(settle_steps(rows.size, p.size)):
+    for _ in range(SETTLE_STEPS):
         # the model's gradient and Hessian on the patch: A holds every taut rope as a spring, so a
         # stretched slack rope adds one and a released taut rope takes its spring away
         grad = A_rows @ p + r[rows]
