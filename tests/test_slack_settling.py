@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from shellform import Structure, build_system
 from shellform.solvers import relaxation
 from shellform.solvers.patch import NodeGraph
 from shellform.solvers.relaxation import _diagonal_positions, _engage_slack_ropes, _settle_slack_set, _SPDSolve, relax
 
-from shellform import Structure, build_system
 from test_relaxation import small_net
 
 
@@ -131,7 +131,7 @@ def line_held_sideways(n=20, gap=1e-12, push=1e-5):
 
     At rest every cross rope is slack (the line bends towards the anchors along its whole
     length), but with every cross rope as a stiff spring a step only compresses the first
-    one: each released rope lets the push reach the next node.
+    few: each released rope lets the push reach the next nodes.
     """
     x = np.arange(n + 2, dtype=float)
     line = np.column_stack([x, np.zeros(n + 2), np.zeros(n + 2)])

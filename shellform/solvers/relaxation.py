@@ -1691,7 +1691,7 @@ def _with_engaged(system, ropes, engaged, A, q):
 #: the ropes whose state a step gets wrong are settled on the nodes within SETTLE_RINGS
 #: members of them, while their free DOFs are at most SETTLE_SHARE of
 #: all, in at most SETTLE_STEPS local Newton steps: a line held sideways by a chain of barely
-#: taut ropes is released about two ropes per step (docs/theory-mra.md)
+#: taut ropes is released a few ropes per step (docs/theory-mra.md)
 SETTLE_RINGS = 3
 SETTLE_SHARE = 0.3
 SETTLE_STEPS = 40
@@ -1714,8 +1714,8 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
     patch solves it, each local step with the ropes it currently stretches
     as springs, until no rope changes state (at most :data:`SETTLE_STEPS`;
     a chain of taut ropes with almost no tension along a line that the step
-    moves sideways is released from its ends, about two ropes per local
-    step). The ropes outside the patch keep their state, as the step does not
+    moves sideways is released from its ends, a few ropes per local step).
+    The ropes outside the patch keep their state, as the step does not
     change there. ``geo`` is the ropes' ``linearised(q)``, when the caller
     has it. Returns the step and the set of the slack ropes it stretches
     (None when empty).
