@@ -40,7 +40,11 @@ relaxed to rest (nodal accelerations below 1e-6 g, velocities below
 
 Every run is a separate process, so its peak memory (``ru_maxrss``) is its
 own; runs go one after another. Prints a table and writes
-``benchmarks/results/bench_mra.json`` and ``.md``.
+``benchmarks/results/bench_mra.json`` and ``.md``, with the growth of the
+fast scheme's cost: exponents fitted over all sizes and over those up to
+10^5 nodes, and from each size to the next, split into the growth of the
+steps and of the time per step. ``--add-rows`` joins the rows of earlier
+runs (for example a long 10^6-node run made on its own).
 
 Run:  python benchmarks/bench_mra.py [--sizes 32 100 316] [--force-density-sizes 32 100 316]
       [--before-sizes 32 100] [--ldl-sizes 32 100] [--plain-sizes 32 100] [--coarse-sizes 32 100 316]
