@@ -1726,7 +1726,7 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
     geo = [e.linearised(q) for e in ropes] if geo is None else geo
 
     def taut_after(e, n, gap, members):
-        dd = dq[e.dofs[members, 3:]] - dq[e.dofs[members, :3]]
+        dd = e._end_difference(dq, e.dofs[members])
         return gap[members] + np.einsum("ij,ij->i", n[members], dd) > 0
 
     # the step was solved with the taut ropes and the slack ropes of ``used`` as springs
@@ -1763,7 +1763,7 @@ def _settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
             if not on.size:
                 continue
             sign = np.where(slack[on], 1.0, -1.0)
-            dd = dq[e.dofs[on, 3:]] - dq[e.dofs[on, :3]]
+            dd = e._end_difference(dq, e.dofs[on])
             pull = (sign * k[on] * (gap[on] + np.einsum("ij,ij->i", n[on], dd)))[:, None] * n[on]
             ld = local[e.dofs[on]]
             np.add.at(grad, ld[ld >= 0], np.concatenate([-pull, pull], axis=1)[ld >= 0])
