@@ -36,10 +36,22 @@ class Key:
     only: tuple = ()
     #: values of the discriminator for which the key must be given
     required_for: tuple = ()
+    #: largest magnitude of a number (default: by unit, :data:`UNIT_BOUNDS`, else :data:`LIMITS`)
+    magnitude: float | None = None
+    #: most characters of a string (default ``LIMITS["text"]``)
+    max_length: int | None = None
 
     @property
     def required(self) -> bool:
         return self.default is _REQUIRED
+
+    def bound(self, integer: bool = False) -> float:
+        """The largest magnitude a number of this key may have."""
+        if self.magnitude is not None:
+            return self.magnitude
+        if integer or self.kind in ("int", "pairs", "positions", "position", "index_list"):
+            return LIMITS["integer"]
+        return UNIT_BOUNDS.get(self.unit, LIMITS["number"])
 
 
 @dataclass(frozen=True)
@@ -58,11 +70,60 @@ class Table:
     accept_single: bool = False
 
 
+#: limits of a scene: beyond them a value is a typing error or a unit off, and the arithmetic (squares of
+#: lengths, products of stiffness and strain) or the memory of the run would fail long before a result
+LIMITS = {
+    "text": 200,            # characters of a string (title, name, ...) unless its key says otherwise
+    "list": 100,            # entries of a list of strings
+    "items": 2_000_000,     # entries along one dimension of an array (nodes, members, points)
+    "integer": 10**9,       # magnitude of an integer (counts, node numbers, grid positions)
+    "number": 1.0e12,       # magnitude of a dimensionless number unless its key says otherwise
+}
+#: largest magnitude of a number of each unit unless its key says otherwise
+UNIT_BOUNDS = {
+    "m": 1.0e6, "m or N": 1.0e6, "m/s": 1.0e6, "m/s^2": 1.0e6,
+    "N": 1.0e12, "Pa": 1.0e13,
+    "kg": 1.0e12, "kg/m": 1.0e9, "kg/m^3": 1.0e6,
+    "s": 1.0e9, "1/s": 1.0e9,
+}
+
+
+def short(value, limit: int = 60) -> str:
+    """``repr(value)`` cut to about ``limit`` characters, safe for any nesting depth and size."""
+
+    def r(v, depth):
+        if isinstance(v, np.ndarray):
+            v = v.ravel()[:9].tolist() + (["..."] if v.size > 9 else [])
+        if isinstance(v, (list, tuple)):
+            if depth > 3:
+                return "[...]"
+            inner = [r(x, depth + 1) for x in v[:8]] + (["..."] if len(v) > 8 else [])
+            return "[" + ", ".join(inner) + "]"
+        if isinstance(v, dict):
+            if depth > 3:
+                return "{...}"
+            items = list(v.items())
+            inner = [f"{r(k, depth + 1)}: {r(x, depth + 1)}" for k, x in items[:6]] + (["..."] if len(items) > 6
+                                                                                        else [])
+            return "{" + ", ".join(inner) + "}"
+        if isinstance(v, str):
+            return repr(v[: limit + 1]) if len(v) <= limit else repr(v[:limit]) + "..."
+        if isinstance(v, int) and not isinstance(v, bool) and abs(v) >= 10**30:
+            return f"{float(v):.3e}" if abs(v) < 10**308 else ("-" if v < 0 else "") + "an integer beyond 1e308"
+        if isinstance(v, str) or v is None or isinstance(v, (bool, int, float)):
+            return repr(v)
+        return f"<{type(v).__name__}>"
+
+    shown = r(value, 0)
+    return shown if len(shown) <= limit else shown[: limit - 3] + "..."
+
+
 def _fail(path, value, allowed):
-    shown = repr(value)
-    if len(shown) > 60:
-        shown = shown[:57] + "..."
-    raise SceneError(path, f"got {shown}; expected {allowed}")
+    raise SceneError(path, f"got {short(value)}; expected {allowed}")
+
+
+def _bound_text(bound: float, unit: str) -> str:
+    return f"{bound:.0e}".replace("e+0", "e").replace("e+", "e") + (f" {unit}" if unit else "")
 
 
 def _number(path, value, key: Key, integer=False):
@@ -70,46 +131,110 @@ def _number(path, value, key: Key, integer=False):
         _fail(path, value, "an integer" if integer else "a number")
     if integer and not isinstance(value, int):
         _fail(path, value, "an integer")
-    if not np.isfinite(value):
+    if isinstance(value, float) and not np.isfinite(value):
         _fail(path, value, "a finite number")
+    bound = key.bound(integer)
+    if abs(value) > bound:
+        _fail(path, value, f"a number of magnitude <= {_bound_text(bound, key.unit)}")
+    _check_range(path, value, key)
+    return int(value) if integer else float(value)
+
+
+def _check_range(path, value, key: Key):
     if key.minimum is not None:
         if value < key.minimum or (key.exclusive_minimum and value == key.minimum):
             rel = ">" if key.exclusive_minimum else ">="
             _fail(path, value, f"a number {rel} {key.minimum}")
     if key.maximum is not None and value > key.maximum:
         _fail(path, value, f"a number <= {key.maximum}")
-    return int(value) if integer else float(value)
 
 
-def _array(path, value, shape_doc, ncol=None, integer=False, ndim=None):
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        _fail(path, value, shape_doc)
-    if arr.dtype == object:
-        _fail(path, value, shape_doc)
-    if ncol is not None and (arr.ndim != 2 or arr.shape[1] != ncol or arr.shape[0] == 0):
-        _fail(path, value, shape_doc)
-    if ncol is None and arr.ndim != (ndim or 1):
+def _at(path: str, index) -> str:
+    return f"{path}{list(index)}" if len(index) else path
+
+
+def _numbers(path, value, shape_doc, ndim, key: Key, integer=False) -> np.ndarray:
+    """A nested list of ``ndim`` levels of numbers as an array, every entry checked.
+
+    Refuses what NumPy would coerce (booleans, numeric strings), ragged rows,
+    deeper nesting, non-finite values, values out of the key's bounds and more
+    entries per dimension than ``LIMITS["items"]``; the error names the entry
+    (``key[i, j]``) and what is allowed.
+    """
+    want = "an integer" if integer else "a number"
+    bound = key.bound(integer)
+    shape: list[int] = []
+    flat: list = []
+
+    def where(index):  # which coordinate of which node a point entry is
+        return f" (coordinate {'xyz'[index[1]]} of node {index[0]})" if key.kind == "points" else ""
+
+    def walk(v, level, index):
+        if level == ndim:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+                raise SceneError(_at(path, index), f"got {short(v)}; expected {want} ({shape_doc})")
+            if isinstance(v, float) and not np.isfinite(v):
+                raise SceneError(_at(path, index), "value is not finite" + where(index))
+            if abs(v) > bound:
+                raise SceneError(_at(path, index), f"got {short(v)}; expected {want} of magnitude <= "
+                                 f"{_bound_text(bound, key.unit)}" + where(index))
+            flat.append(v)
+            return
+        if not isinstance(v, list):
+            _fail(_at(path, index), v, shape_doc if not index else f"a list ({shape_doc})")
+        if len(v) > LIMITS["items"]:
+            raise SceneError(_at(path, index), f"has {len(v):,} entries; at most {LIMITS['items']:,} are allowed")
+        if len(shape) == level:
+            shape.append(len(v))
+        elif shape[level] != len(v):
+            raise SceneError(path, f"entry {list(index)} has {len(v)} entries where the entries before have "
+                             f"{shape[level]}; expected {shape_doc}")
+        for i, x in enumerate(v):
+            walk(x, level + 1, index + (i,))
+
+    walk(value, 0, ())
+    if len(shape) < ndim:  # an empty list somewhere above the numbers
+        shape += [0] * (ndim - len(shape))
+    arr = np.array(flat, dtype=np.int64 if integer else float).reshape(shape)
+    if key.minimum is not None or key.maximum is not None:
+        low = arr < key.minimum if key.minimum is not None else np.zeros(arr.shape, bool)
+        if key.minimum is not None and key.exclusive_minimum:
+            low |= arr == key.minimum
+        high = arr > key.maximum if key.maximum is not None else np.zeros(arr.shape, bool)
+        bad = np.argwhere(low | high)
+        if bad.size:
+            i = tuple(int(k) for k in bad[0])
+            _check_range(_at(path, i), arr[i].item(), key)
+    return arr
+
+
+def _array(path, value, shape_doc, key: Key, ncol=None, integer=False, ndim=None):
+    arr = _numbers(path, value, shape_doc, ndim or (2 if ncol is not None else 1), key, integer)
+    if ncol is not None and (arr.shape[1] != ncol or arr.shape[0] == 0):
         _fail(path, value, shape_doc)
     if arr.size == 0 and ndim:
         _fail(path, value, shape_doc)
-    bad = np.argwhere(~np.isfinite(arr))
-    if bad.size:
-        raise SceneError(f"{path}{[int(i) for i in bad[0]]}", "value is not finite")
-    if integer:
-        if np.any(arr != np.round(arr)):
-            _fail(path, value, shape_doc + " of integers")
-        return arr.astype(np.int64)
     return arr
 
 
-def _surface_points(path, value):
+def _surface_points(path, value, key: Key):
     doc = "a grid of [x, y, z] control points (a list of rows of triples)"
-    arr = _array(path, value, doc, ndim=3)
+    arr = _array(path, value, doc, key, ndim=3)
     if arr.shape[2] != 3 or min(arr.shape[:2]) < 2:
         _fail(path, value, doc + ", at least 2 x 2")
     return arr
+
+
+def _text(path, value, key: Key):
+    if not isinstance(value, str):
+        _fail(path, value, "a string")
+    limit = key.max_length or LIMITS["text"]
+    if len(value) > limit:
+        raise SceneError(path, f"has {len(value):,} characters; at most {limit} are allowed")
+    bad = next((c for c in value if (ord(c) < 32 and c not in "\t\n") or 0xD800 <= ord(c) < 0xE000), None)
+    if bad is not None:
+        raise SceneError(path, f"holds the control character {bad!r}; expected printable text")
+    return value
 
 
 #: value kinds and what they accept (the ``type`` column of the reference)
@@ -143,48 +268,53 @@ def check_value(path: str, value, key: Key):
             _fail(path, value, "true or false")
         return value
     if k == "str":
-        if not isinstance(value, str):
-            _fail(path, value, "a string")
+        value = _text(path, value, key)
         if key.choices and value not in key.choices:
             _fail(path, value, "one of " + ", ".join(repr(c) for c in key.choices))
         return value
     if k == "str_list":
-        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        if not isinstance(value, list):
             _fail(path, value, "a list of strings")
-        for v in value:
+        if len(value) > LIMITS["list"]:
+            raise SceneError(path, f"has {len(value):,} entries; at most {LIMITS['list']} are allowed")
+        for i, v in enumerate(value):
+            if not isinstance(v, str):
+                _fail(f"{path}[{i}]", v, "a string (a list of strings)")
+            _text(f"{path}[{i}]", v, key)
             if key.choices and v not in key.choices:
-                _fail(path, v, "entries from " + ", ".join(repr(c) for c in key.choices))
+                _fail(f"{path}[{i}]", v, "entries from " + ", ".join(repr(c) for c in key.choices))
         return list(value)
     if k == "vec3":
-        arr = _array(path, value, "a list of 3 numbers")
+        arr = _array(path, value, "a list of 3 numbers", key)
         if arr.shape != (3,):
             _fail(path, value, "a list of 3 numbers")
         return arr
     if k == "points":
-        return _array(path, value, KINDS[k], ncol=3)
+        return _array(path, value, KINDS[k], key, ncol=3)
     if k == "pairs":
-        return _array(path, value, KINDS[k], ncol=2, integer=True)
+        return _array(path, value, KINDS[k], key, ncol=2, integer=True)
     if k == "positions":
-        if isinstance(value, list) and len(value) == 2 and all(isinstance(v, int) for v in value):
+        if isinstance(value, list) and len(value) == 2 and all(isinstance(v, int) and not isinstance(v, bool)
+                                                                for v in value):
             value = [value]  # one position
-        return _array(path, value, KINDS[k], ncol=2, integer=True)
+        return _array(path, value, KINDS[k], key, ncol=2, integer=True)
     if k == "position":
-        arr = _array(path, value, KINDS[k], integer=True)
+        arr = _array(path, value, KINDS[k], key, integer=True)
         if arr.shape != (2,):
             _fail(path, value, KINDS[k])
         return arr
     if k == "index_list":
         if isinstance(value, int) and not isinstance(value, bool):
             value = [value]
-        return _array(path, value, "a list of node indices", integer=True)
+        return _array(path, value, "a list of node indices", key, integer=True)
     if k == "float_or_list":
         if isinstance(value, list):
-            return _array(path, value, KINDS[k])
+            return _array(path, value, KINDS[k], key)
         return _number(path, value, key)
     if k == "grid":
-        return _array(path, value, KINDS[k], ndim=2)
+        return _array(path, value, KINDS[k], key, ndim=2)
     if k == "surface_points":
-        return _surface_points(path, value)
+        return _surface_points(path, value, key)
     raise AssertionError(f"unknown key kind {k}")
 
 
@@ -200,10 +330,11 @@ def check_table(path: str, data, table: Table) -> dict:
     """Validate one table against its schema; fill defaults."""
     if not isinstance(data, dict):
         _fail(path, data, "a table")
-    unknown = sorted(set(data) - set(table.keys))
+    unknown = sorted((k for k in data if k not in table.keys), key=str)
     if unknown:
         allowed = ", ".join(sorted(table.keys))
-        raise SceneError(_join(path, unknown[0]), f"unknown key; allowed keys here: {allowed}")
+        name = unknown[0] if isinstance(unknown[0], str) and len(unknown[0]) <= 40 else short(unknown[0], 40)
+        raise SceneError(_join(path, name), f"unknown key; allowed keys here: {allowed}")
     selector = table.discriminator
     kind = None
     if selector is not None:
