@@ -6,6 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..io.table import save_figure
 from .hemisphere import HemisphereModel
 
 
@@ -65,8 +66,10 @@ def render_states(path, model: HemisphereModel, states: Sequence[tuple[str, np.n
             ax2.legend(fontsize=7, loc="lower left")
         ax2.tick_params(labelsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)
 
 
 def plot_curves(path, curves: Sequence[dict], title: str = "", published: Sequence[float] = (),
@@ -103,5 +106,7 @@ def plot_curves(path, curves: Sequence[dict], title: str = "", published: Sequen
         ax.set_title(title)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)

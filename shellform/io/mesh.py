@@ -11,13 +11,13 @@ run never leaves a half-written result behind.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
 import meshio
 import numpy as np
+
+from .files import atomic_target
 
 CELL_FIELDS = ("axial_force", "strain", "slack", "group")
 
@@ -51,23 +51,11 @@ def state_mesh(system, q: np.ndarray, lam: float = 1.0) -> meshio.Mesh:
     return meshio.Mesh(points=x.copy(), cells=[("line", lines)], point_data=point_data, cell_data=cell_data)
 
 
-def _atomic_target(path: Path):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    return Path(tmp)
-
-
 def write_mesh(path, mesh: meshio.Mesh, file_format: str | None = None) -> Path:
     """Write any meshio mesh atomically (temporary file, then rename)."""
     path = Path(path)
-    tmp = _atomic_target(path)
-    try:
+    with atomic_target(path) as tmp:
         meshio.write(tmp, mesh, file_format=file_format)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -89,20 +77,14 @@ def write_series(path, system, states: Iterable[tuple[float, np.ndarray, float]]
         a prescribed displacement or a physical time).
     """
     path = Path(path)
-    tmp = _atomic_target(path)
-    try:
-        with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as writer:
-            first = True
-            for t, q, lam in states:
-                mesh = state_mesh(system, q, lam)
-                if first:
-                    # XDMF series share one geometry: the reference configuration;
-                    # ParaView's "Warp By Vector" on displacement shows each state
-                    writer.write_points_cells(system.structure.nodes, mesh.cells)
-                    first = False
-                writer.write_data(float(t), point_data=mesh.point_data, cell_data=mesh.cell_data)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_target(path) as tmp, meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as writer:
+        first = True
+        for t, q, lam in states:
+            mesh = state_mesh(system, q, lam)
+            if first:
+                # XDMF series share one geometry: the reference configuration;
+                # ParaView's "Warp By Vector" on displacement shows each state
+                writer.write_points_cells(system.structure.nodes, mesh.cells)
+                first = False
+            writer.write_data(float(t), point_data=mesh.point_data, cell_data=mesh.cell_data)
     return path

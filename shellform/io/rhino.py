@@ -7,12 +7,12 @@ result opens in Rhino and feeds Grasshopper.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
+from .files import atomic_target
 
 
 def _rhino():
@@ -70,16 +70,9 @@ def write_3dm(
         mesh.Normals.ComputeNormals()
         model.Objects.AddMesh(mesh, attrs)
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".3dm", dir=path.parent)
-    os.close(fd)
-    try:
-        if not model.Write(tmp, 7):
+    with atomic_target(path) as tmp:
+        if not model.Write(str(tmp), 7):
             raise OSError(f"rhino3dm could not write {path}")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path
 
 

@@ -10,20 +10,13 @@ a traced equilibrium path.
 from __future__ import annotations
 
 import csv
-import os
-import tempfile
 import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-
-def _temporary(path: Path, suffix: str) -> str:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=suffix, dir=path.parent)
-    os.close(fd)
-    return tmp
+from .files import open_atomic
 
 
 def _cell(v):
@@ -58,17 +51,11 @@ def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None
     lengths = {len(table[c]) for c in columns}
     if len(lengths) > 1:
         raise ValueError(f"columns have different lengths: {sorted(lengths)}")
-    tmp = _temporary(path, ".csv")
-    try:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(columns)
-            for row in zip(*(table[c] for c in columns)):
-                w.writerow([_cell(v) for v in row])
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with open_atomic(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(columns)
+        for row in zip(*(table[c] for c in columns)):
+            w.writerow([_cell(v) for v in row])
     return path
 
 
@@ -103,15 +90,33 @@ def _figure(size=(6.4, 4.6)):
     return fig
 
 
-def _save(fig, path: Path) -> Path:
-    tmp = _temporary(path, ".png")
-    try:
-        fig.savefig(tmp, format="png")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+def save_figure(fig, path, **kwargs) -> Path:
+    """Save a Matplotlib figure as PNG atomically (``kwargs`` go to ``savefig``, e.g. ``dpi``)."""
+    path = Path(path)
+    with open_atomic(path, "wb") as fh:
+        fig.savefig(fh, format="png", **kwargs)
     return path
+
+
+#: longest text taken from a scene into a plot (a title); the rest is cut
+PLOT_TEXT_LIMIT = 200
+
+
+def plain_title(ax, text: str, width: int = 70, **kwargs) -> None:
+    """Set a title from user text: shown as typed (no mathtext), cut to a sane length.
+
+    A ``$`` in a scene title would otherwise be parsed as TeX, and bad TeX
+    raises only when the figure is drawn, after the analysis; a very long
+    title takes minutes to lay out.
+    """
+    text = str(text)
+    if len(text) > PLOT_TEXT_LIMIT:
+        text = text[: PLOT_TEXT_LIMIT - 1] + "\N{HORIZONTAL ELLIPSIS}"
+    ax.set_title(textwrap.fill(text, width), parse_math=False, **kwargs)
+
+
+def _save(fig, path: Path) -> Path:
+    return save_figure(fig, path)
 
 
 def plot_curve(
@@ -186,7 +191,7 @@ def plot_curve(
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if title:
-        ax.set_title(textwrap.fill(title, 70), fontsize=9)
+        plain_title(ax, title, fontsize=9)
     ax.grid(True, alpha=0.3)
     if labelled or reference is not None:
         ax.legend(fontsize=8, loc="best")

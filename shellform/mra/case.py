@@ -234,7 +234,8 @@ def write_meshes(out: Path, res: FormFindingResult, inv: InvertedShell, tag: str
 
 
 def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None = None, *,
-                 q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None, export=None) -> dict:
+                 q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None, export=None,
+                 summary_file: str | None = "summary.json") -> dict:
     """Form-find one case and write its results.
 
     Parameters
@@ -257,6 +258,9 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
         ``export(result, inverted, out_dir) -> list of file names``: further
         files written after the meshes (``inverted`` is None when the
         inversion failed).
+    summary_file : str or None
+        Name of the summary written to ``out_dir``; None: none (a caller that
+        runs more stages writes one summary of them all).
 
     Returns
     -------
@@ -335,5 +339,6 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
         files += export(res, inv, out)
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t0
-    write_json(out / "summary.json", summary)
+    if summary_file is not None:
+        write_json(out / summary_file, summary)
     return summary

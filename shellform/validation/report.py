@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..io import write_json
+from ..io.files import output_folder, output_lock, write_text
 
 
 @dataclass
@@ -89,12 +90,17 @@ def run_validation(names, out_dir, progress=None) -> list[CaseResult]:
     from .registry import CASES
 
     progress = progress or (lambda msg: None)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     names = list(names) or list(CASES)
     unknown = [n for n in names if n not in CASES]
     if unknown:
         raise KeyError(f"unknown validation case(s) {unknown}; available: {', '.join(CASES)}")
+    with output_lock(output_folder(out_dir)) as out:
+        return _run_cases(names, out, progress)
+
+
+def _run_cases(names, out: Path, progress) -> list[CaseResult]:
+    from .registry import CASES
+
     results = []
     for name in names:
         progress(f"validation case {name}: {CASES[name].title}")
@@ -104,7 +110,7 @@ def run_validation(names, out_dir, progress=None) -> list[CaseResult]:
         for c in result.checks:
             progress(f"  {c.quantity}: {c.computed:.6g} vs {c.reference:.6g} -> {'pass' if c.passed else 'FAIL'}")
         results.append(result)
-    (out / "report.md").write_text(_markdown(results))
+    write_text(out / "report.md", _markdown(results))
     write_json(out / "validation.json", {
         "passed": all(r.passed for r in results),
         "cases": [{"name": r.name, "title": r.title, "passed": r.passed, "wall_time_s": r.wall_time_s,
