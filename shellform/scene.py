@@ -36,6 +36,7 @@ lists; ``mra_params`` gives the parameters of a form-finding scene for
 from __future__ import annotations
 
 import importlib.util
+import stat
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,9 +54,11 @@ from .schema import (
     FORM_FINDING,
     GRID_GROUPS,
     PLANFORMS,
+    LIMITS,
     SCENE,
     Table,
     check_table,
+    short,
 )
 
 if sys.version_info >= (3, 11):
@@ -96,6 +99,10 @@ _ANALYSIS_SCOPE = {
 
 #: time steps of a dynamics scene: beyond this a unit is almost certainly off
 MAX_TIME_STEPS = 1.0e8
+#: size of a scene file: a scene of two million nodes given one by one stays well below it
+MAX_SCENE_BYTES = LIMITS["scene_bytes"]
+#: nodes of a structure (a planform grid, the hemisphere's rods, a mesh file or [nodes])
+MAX_NODES = LIMITS["items"]
 
 
 def _source(data: dict) -> str:
@@ -250,11 +257,7 @@ def _check_bar_rope(scene: dict, base_dir) -> None:
         _need_some(scene, sup, i, ("nodes", "groups", "z"))
     c = scene["analysis"]["continuation"]
     if scene["analysis"]["type"] == "continuation":
-        if c["initial_increment"] is None and c["parameter_min"] is None and c["parameter_max"] is None:
-            raise SceneError("analysis.continuation.parameter_max",
-                             "the path needs a scale: give parameter_max, parameter_min or initial_increment")
-        if c["initial_increment"] is not None and c["initial_increment"] == 0.0:
-            raise SceneError("analysis.continuation.initial_increment", "must not be zero")
+        _check_path_bounds(c)
     d = scene["analysis"]["dynamics"]
     if scene["analysis"]["type"] == "dynamics":
         for key in ("time_step", "duration"):
@@ -271,6 +274,23 @@ def _check_bar_rope(scene: dict, base_dir) -> None:
     start = scene["analysis"]["start"]
     if start is not None and len(start) != n:
         raise SceneError("analysis.start", f"has {len(start)} points; the scene has {n} nodes")
+
+
+def _check_path_bounds(c: dict) -> None:
+    """The path starts at parameter 0 and goes up: its bounds must allow that, and give it a scale."""
+    where = "analysis.continuation."
+    lo, hi = c["parameter_min"], c["parameter_max"]
+    if hi is not None and hi <= 0.0:
+        raise SceneError(where + "parameter_max", f"got {hi!r}; expected a number > 0 (the path starts at "
+                         "parameter 0 and goes up)")
+    if lo is not None and lo > 0.0:
+        raise SceneError(where + "parameter_min", f"got {lo!r}; expected a number <= 0 (the path starts at "
+                         "parameter 0)")
+    if c["initial_increment"] is None and hi is None:
+        raise SceneError(where + "parameter_max", "the path needs a scale: give parameter_max (> 0) or "
+                         "initial_increment")
+    if c["initial_increment"] is not None and c["initial_increment"] == 0.0:
+        raise SceneError(where + "initial_increment", "must not be zero")
 
 
 def _where(scene: dict, i: int, key: str = "") -> str:
@@ -299,6 +319,7 @@ def _check_planform(scene: dict) -> None:
             raise SceneError(_where(scene, i, "groups"), f"a planform grid has no node set {unknown[0]!r}; its sets: "
                              + ", ".join(repr(g) for g in GRID_GROUPS))
         _need_some(scene, sup, i, ("nodes", "groups", "positions", "frames"))
+    _check_grid(scene)
     slack = scene["ropes"]["slack"] if scene["ropes"] else 0.0
     if isinstance(slack, np.ndarray) and slack.shape != (2,):
         raise SceneError("ropes.slack", f"got {len(slack)} values; expected one number or [sc_i, sc_j]")
@@ -307,6 +328,54 @@ def _check_planform(scene: dict) -> None:
     st = scene["analysis"]["start_shape"]
     if st["type"] == "nurbs" and st["depth"] is None and st["control_heights"] is None:
         raise SceneError("analysis.start_shape.depth", "a 'nurbs' start needs a depth or control_heights")
+
+
+def grid_shape(geometry: dict) -> tuple[int, int]:
+    """Nodes along i and j of the structured grid of a validated planform ``[geometry]``."""
+    if geometry["type"] in ("ellipse", "disk"):
+        return geometry["n"] + 1, geometry["n"] + 1
+    return geometry["n_i"] + 1, geometry["n_j"] + 1
+
+
+def _check_grid(scene: dict) -> None:
+    """Sizes of the planform grid and the grid positions, frames and node numbers of its supports."""
+    g = scene["geometry"]
+    ni, nj = grid_shape(g)
+    if ni * nj > MAX_NODES:
+        key = "geometry.n" if g["type"] in ("ellipse", "disk") else "geometry.n_i"
+        raise SceneError(key, f"the grid would have {ni} x {nj} = {ni * nj:,} nodes; at most {MAX_NODES:,} are "
+                         "allowed")
+    if g["type"] == "bspline":
+        nu, nv = g["control_points"].shape[:2]
+        for key, degree, count in (("degree_u", g["degree_u"], nu), ("degree_v", g["degree_v"], nv)):
+            if degree >= count:
+                raise SceneError(f"geometry.{key}", f"got {degree}; expected at most {count - 1} (the control "
+                                 f"points have {count} rows along this direction)")
+        if g["weights"] is not None and g["weights"].shape != (nu, nv):
+            raise SceneError("geometry.weights", f"has shape {g['weights'].shape[0]} x {g['weights'].shape[1]}; "
+                             f"expected {nu} x {nv}, one weight per control point")
+
+    def position(where: str, pos) -> tuple[int, int]:
+        i, j = (int(v) for v in pos)
+        if not (-ni <= i < ni and -nj <= j < nj):
+            raise SceneError(where, f"grid position [{i}, {j}] is out of range: the grid has {ni} x {nj} nodes "
+                             f"(i in {-ni}..{ni - 1}, j in {-nj}..{nj - 1}; negative counts from the end)")
+        return i % ni, j % nj
+
+    for k, sup in enumerate(scene["supports"]):
+        for m, pos in enumerate(sup["positions"] if sup["positions"] is not None else []):
+            position(_where(scene, k, f"positions[{m}]"), pos)
+        if sup["nodes"] is not None:
+            bad = np.flatnonzero((sup["nodes"] < 0) | (sup["nodes"] >= ni * nj))
+            if bad.size:
+                raise SceneError(_where(scene, k, f"nodes[{int(bad[0])}]"), f"node {int(sup['nodes'][bad[0]])} is "
+                                 f"out of range: the grid has {ni * nj} nodes (0..{ni * nj - 1})")
+        for m, frame in enumerate(sup["frames"]):
+            where = _where(scene, k, f"frames[{m}]")
+            a, b = position(where + ".from", frame["from"]), position(where + ".to", frame["to"])
+            if a[0] != b[0] and a[1] != b[1]:
+                raise SceneError(where, f"from {list(a)} to {list(b)} is not along one grid line (same i or "
+                                 "same j)")
 
 
 def _check_imperfection(scene: dict) -> None:
@@ -321,26 +390,71 @@ def _check_imperfection(scene: dict) -> None:
 
 
 def _check_hemisphere(scene: dict) -> None:
-    n = scene["geometry"]["n"]
+    g = scene["geometry"]
+    n = g["n"]
     if n % 2 == 0 or n < 3:
         raise SceneError("geometry.n", f"got {n}; the hemisphere needs an odd number of rods per direction >= 3")
+    from .gridshell.hemisphere import PAPER
+
+    radius = g["radius"] if g["radius"] is not None else PAPER["radius"]
+    spacing = np.pi * radius / (n + 1)  # between joints along a rod (the Chebyshev net's)
+    dl = g["voronoi_length"]
+    if dl > spacing:
+        raise SceneError("geometry.voronoi_length", f"got {dl!r}; expected at most the joint spacing pi R / (n + 1) "
+                         f"= {spacing:.4g} m")
+    nodes = 2 * n * np.pi * radius / dl  # each of the 2 n rods is at most half a great circle long
+    if nodes > MAX_NODES:
+        raise SceneError("geometry.voronoi_length", f"got {dl!r}: the rods would have about {nodes:,.0f} nodes; at "
+                         f"most {MAX_NODES:,} are allowed")
     imp = scene["imperfection"]
     if imp is not None and imp["type"] != "forces":
         raise SceneError("imperfection.type", f"got {imp['type']!r}; the hemisphere takes only 'forces' (random "
                          "dead forces, as in the paper)")
 
 
+def read_scene_text(path) -> str:
+    """The text of a scene file: a regular file of at most ``MAX_SCENE_BYTES``, UTF-8 encoded."""
+    path = Path(path)
+    where = short(str(path), 200).strip("'")
+    try:
+        info = path.stat()
+    except (OSError, ValueError) as exc:
+        raise SceneError(where, f"cannot read the scene file ({getattr(exc, 'strerror', None) or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise SceneError(where, "not a regular file (a directory, device or pipe cannot be a scene)")
+    if info.st_size > MAX_SCENE_BYTES:
+        raise SceneError(where, f"the file has {info.st_size:,} bytes; a scene may have at most "
+                         f"{MAX_SCENE_BYTES:,}")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise SceneError(where, f"cannot read the scene file ({exc.strerror})") from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise SceneError(where, f"not UTF-8 text: byte 0x{raw[exc.start]:02x} at line {line}, column {column} "
+                         "(save the scene as UTF-8)") from None
+
+
+def parse_toml(text: str, where: str = "scene") -> dict:
+    """A TOML text as a dictionary; errors name the line and what is wrong there."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(where, f"not valid TOML: {exc}") from None
+    except RecursionError:  # the parser recurses into nested arrays and inline tables
+        raise SceneError(where, "not valid TOML for a scene: arrays or tables nested hundreds of levels deep "
+                         "(a scene nests at most four)") from None
+    except ValueError:  # an integer of thousands of digits
+        raise SceneError(where, "not valid TOML for a scene: an integer of thousands of digits") from None
+
+
 def load_scene(path) -> dict:
     """Read and validate a TOML scene file (relative file names are relative to its folder)."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SceneError(str(path), f"cannot read the scene file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(str(path), f"not valid TOML: {exc}") from None
+    data = parse_toml(read_scene_text(path), short(str(path), 200).strip("'"))
     scene = parse_scene(data, base_dir=path.parent)
     scene["name"] = scene["name"] or path.stem
     return scene

@@ -9,6 +9,7 @@ it (``python docs/update_reference.py``).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,6 +41,8 @@ class Key:
     magnitude: float | None = None
     #: most characters of a string (default ``LIMITS["text"]``)
     max_length: int | None = None
+    #: a string must match this regular expression (and its description)
+    pattern: tuple = ()
 
     @property
     def required(self) -> bool:
@@ -78,6 +81,7 @@ LIMITS = {
     "items": 2_000_000,     # entries along one dimension of an array (nodes, members, points)
     "integer": 10**9,       # magnitude of an integer (counts, node numbers, grid positions)
     "number": 1.0e12,       # magnitude of a dimensionless number unless its key says otherwise
+    "scene_bytes": 256 * 2**20,  # size of a scene file
 }
 #: largest magnitude of a number of each unit unless its key says otherwise
 UNIT_BOUNDS = {
@@ -234,6 +238,8 @@ def _text(path, value, key: Key):
     bad = next((c for c in value if (ord(c) < 32 and c not in "\t\n") or 0xD800 <= ord(c) < 0xE000), None)
     if bad is not None:
         raise SceneError(path, f"holds the control character {bad!r}; expected printable text")
+    if key.pattern and not re.fullmatch(key.pattern[0], value):
+        _fail(path, value, key.pattern[1])
     return value
 
 
@@ -403,6 +409,10 @@ def describe(table: Table, path: str = "", level: int = 2) -> list[str]:
                 doc += f" One of: {_choice_text(key.choices)}."
             if key.maximum is not None:
                 doc += f" At most {key.maximum}."
+            if key.magnitude is not None:
+                doc += f" Magnitude at most {_bound_text(key.magnitude, key.unit)}."
+            if key.max_length is not None:
+                doc += f" At most {key.max_length} characters."
             if key.only:
                 doc += f" Only for {table.discriminator} {_choice_text(key.only)}."
             lines.append(f"| `{name}` | {key.kind} | {key.unit} | {_default_text(key)} | {doc} |")
@@ -415,10 +425,37 @@ def describe(table: Table, path: str = "", level: int = 2) -> list[str]:
     return lines
 
 
+def limits_text(level: int = 3) -> list[str]:
+    """Markdown of the limits every value is checked against (:data:`LIMITS`, :data:`UNIT_BOUNDS`)."""
+    units = {}
+    for unit, bound in UNIT_BOUNDS.items():
+        units.setdefault(bound, []).append(f"`{unit}`")
+    return [
+        f"{'#' * level} Limits", "",
+        "Beyond these a value is a typing error or a unit off: the scene is refused with the key, the value and "
+        "the limit, before anything is built.", "",
+        "| what | at most |", "|---|---|",
+        "| magnitude of a number, by unit | " + "; ".join(f"{_bound_text(b, '')} ({', '.join(u)})"
+                                                     for b, u in units.items()) + " |",
+        f"| magnitude of a dimensionless number | {_bound_text(LIMITS['number'], '')} |",
+        f"| magnitude of an integer (counts, node numbers, grid positions) | {_bound_text(LIMITS['integer'], '')} |",
+        f"| characters of a string (unless its key says otherwise) | {LIMITS['text']} |",
+        f"| entries of a list of strings | {LIMITS['list']} |",
+        f"| entries along one dimension of an array; nodes of a structure | {LIMITS['items']:,} |",
+        "",
+        "Entries of a number array must be numbers (`true` and `\"0.5\"` are not); strings hold no control "
+        "characters other than tab and newline. A scene file is UTF-8 text of at most "
+        f"{LIMITS['scene_bytes'] // 2**20} MiB; a mesh file "
+        "(`geometry.file`, relative to the scene file) is a regular file of at most 2 GiB whose extension names a "
+        "format meshio reads.", "",
+    ]
+
+
 def reference(table: Table, level: int = 3) -> str:
-    """The Markdown reference of a scene schema: every table and key, then the value types."""
+    """The Markdown reference of a scene schema: every table and key, the value types, then the limits."""
     kinds = ["| type | a value is |", "|---|---|"] + [f"| {k} | {v} |" for k, v in KINDS.items()]
-    return "\n".join(describe(table, level=level) + [f"{'#' * level} Value types", ""] + kinds)
+    return "\n".join(describe(table, level=level) + [f"{'#' * level} Value types", ""] + kinds + [""]
+                     + limits_text(level))
 
 
 # -- the scene schema ---------------------------------------------------------------------------
@@ -443,6 +480,8 @@ _POS = dict(minimum=0.0, exclusive_minimum=True)
 #: divisions of a grid per side: far beyond any net that fits in memory is a typing error
 _DIVISIONS = dict(minimum=1, maximum=10_000)
 _NONNEG = dict(minimum=0.0)
+#: a rope's rest length beyond (1 + 10) times its reference length is a typing error
+MAX_SLACK = 10.0
 #: planform sizes: beyond 1000 km is a typing error (and overflows the mesher's arithmetic)
 _SIZE = dict(minimum=0.0, exclusive_minimum=True, maximum=1.0e6)
 
@@ -456,7 +495,7 @@ GEOMETRY = Table(
         "type": Key("str", "Geometry source.", choices=GEOMETRIES),
         "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...), relative to the scene file. Line "
                     "cells become members, and so do the edges of triangle and quad cells (each once).",
-                    default=None, only=("file",), required_for=("file",)),
+                    default=None, only=("file",), required_for=("file",), max_length=1000),
         "length_x": Key("float", "Side of the rectangle along x.", default=None, unit="m", only=("rectangle",),
                         required_for=("rectangle",), **_SIZE),
         "length_y": Key("float", "Side of the rectangle along y.", default=None, unit="m", only=("rectangle",),
@@ -484,7 +523,7 @@ GEOMETRY = Table(
                               only=("bspline",), required_for=("bspline",)),
         "degree_u": Key("int", "Degree of the surface in u.", default=3, only=("bspline",), minimum=1),
         "degree_v": Key("int", "Degree of the surface in v.", default=3, only=("bspline",), minimum=1),
-        "weights": Key("grid", "NURBS weights, nu x nv (default: all 1, a B-spline).", default=None,
+        "weights": Key("grid", "NURBS weights, nu x nv (default: all 1, a B-spline).", default=None, **_POS,
                        only=("bspline",)),
         "voronoi_length": Key("float", "Target rod edge length dl; each segment between joints gets round(h/dl) "
                               "edges.", default=1.0e-3, unit="m", only=("hemisphere",), **_POS),
@@ -665,10 +704,12 @@ DYNAMICS = Table(
 SCENE = Table(
     doc="A scene file.",
     keys={
-        "title": Key("str", "Free text shown in the summary.", default=""),
-        "name": Key("str", "Short name (runners of validation cases name their output folder after it).",
-                    default=""),
-        "description": Key("str", "Free text.", default=""),
+        "title": Key("str", "Free text shown in the summary (and as the title of plots).", default=""),
+        "name": Key("str", "Short name (runners of validation cases name their output folder after it): letters, "
+                    "digits, '.', '_', '-' and '+', not starting with '.'.", default="", max_length=100,
+                    pattern=(r"[A-Za-z0-9_+\-][A-Za-z0-9._+\-]*", "letters, digits, '.', '_', '-' or '+', not "
+                             "starting with '.' (it names a folder)")),
+        "description": Key("str", "Free text.", default="", max_length=5000),
         "nodes": Table(
             doc="Node coordinates of the reference configuration (a structure given node by node; instead of "
                 "[geometry]).",
@@ -690,7 +731,8 @@ SCENE = Table(
                 "mass_per_length": Key("float_or_list", "Linear density for self-weight and inertia.", default=0.0,
                                        unit="kg/m", **_NONNEG),
                 "slack": Key("float_or_list", "Rope slack coefficient sc: rest length = (1 + sc) x reference "
-                             "length. Ropes only.", default=0.0, minimum=-1.0, exclusive_minimum=True),
+                             "length. Ropes only.", default=0.0, minimum=-1.0, exclusive_minimum=True,
+                             maximum=MAX_SLACK),
                 "rest_length": Key("float_or_list", "Unstressed length; overrides the reference length and "
                                    "slack (default: from them).", default=None, unit="m", **_POS),
             },
@@ -699,7 +741,8 @@ SCENE = Table(
             doc="The ropes of a planform net (form finding): every grid edge is a tension-only rope.",
             keys={
                 "slack": Key("float_or_list", "Slack coefficient sc: rest length = (1 + sc) x planform edge length; "
-                             "one number, or [sc_i, sc_j] for the two families of grid lines.", default=0.0),
+                             "one number, or [sc_i, sc_j] for the two families of grid lines.", default=0.0,
+                             minimum=-1.0, exclusive_minimum=True, maximum=MAX_SLACK),
                 "EA": Key("float", "Axial stiffness (default stiffness_ratio x the weight of the net).", default=None,
                           unit="N", **_POS),
                 "stiffness_ratio": Key("float", "EA over the net's weight when EA is not given.", default=1.0e4,

@@ -142,7 +142,7 @@ def test_bad_key_is_named_with_what_is_allowed(base, path, value, key, words):
     ({**LEGACY_NET, "analysis": {"relaxation": {}}}, "solver", "given twice"),
     ({**LEGACY_NET, "loads": {"gravity": [0, 0, -9.81], "wind": 1}}, "loads.wind", "takes only 'gravity'"),
     ({**LEGACY_NET, "supports": {"groups": ["middle"]}}, "supports.groups", "no node set 'middle'"),
-    ({**LEGACY_NET, "supports": {"positions": [[0, 7]]}}, "supports", "out of range"),
+    ({**LEGACY_NET, "supports": {"positions": [[0, 7]]}}, "supports.positions[0]", "out of range"),
     ({**LEGACY_NET, "buckling": {"E": -1.0}}, "buckling.E", "> 0.0"),
 ])
 def test_older_layout_errors_name_the_key_as_written(raw, key, words, tmp_path):

@@ -9,6 +9,7 @@ their numbering in the file, so node numbers in a scene are the file's.
 
 from __future__ import annotations
 
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,6 +28,12 @@ CORNERS = {
 FAMILIES = {"line": ("line", "line3"), "triangle": ("triangle", "triangle6", "triangle7"),
             "quad": ("quad", "quad8", "quad9")}
 _IGNORED = {"vertex"}
+#: a mesh file larger than this is not a structure's geometry (2 GiB)
+MAX_MESH_BYTES = 2 * 2**30
+#: most points of a mesh file (as many as a scene's nodes)
+MAX_POINTS = 2_000_000
+#: largest coordinate magnitude [m] (as a scene's coordinates)
+MAX_COORDINATE = 1.0e6
 
 
 @dataclass
@@ -86,31 +93,79 @@ def unique_edges(edges: np.ndarray) -> np.ndarray:
     return e[np.sort(first)]
 
 
-def read_mesh(path) -> ImportedMesh:
-    """Read a mesh file.
+def _shown(path: Path) -> str:
+    text = str(path)
+    return repr(text if len(text) <= 120 else "..." + text[-117:])
+
+
+def mesh_format(path) -> tuple[str, tuple]:
+    """The extension of a mesh file and the meshio formats it stands for.
 
     Raises
     ------
     ModelError
-        When the file cannot be read or holds no line, triangle or quad cells;
-        the message names the file and what it holds.
+        When meshio reads no format of that extension.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ModelError(f"mesh file {str(path)!r} does not exist")
+    suffixes = [s.lower() for s in path.suffixes[-2:]]
+    for ext in ("".join(suffixes), suffixes[-1] if suffixes else ""):
+        if ext in meshio.extension_to_filetypes:
+            return ext, tuple(meshio.extension_to_filetypes[ext])
+    known = ", ".join(sorted(meshio.extension_to_filetypes))
+    ext = suffixes[-1] if suffixes else "none"
+    raise ModelError(f"mesh file {_shown(path)} has extension {ext!r}, which names no mesh format; "
+                     f"expected one of {known}")
+
+
+def read_mesh(path) -> ImportedMesh:
+    """Read a mesh file: a regular file of a mesh format meshio reads, named by its extension.
+
+    Raises
+    ------
+    ModelError
+        When the file does not exist, is not a regular file (a directory,
+        device or pipe), has no mesh extension, cannot be read as its format
+        (the message never quotes the file's contents), holds no line,
+        triangle or quad cells, or holds points out of range; the message
+        names the file and what is wrong.
+    """
+    path = Path(path)
+    try:
+        info = path.stat()
+    except (OSError, ValueError):
+        raise ModelError(f"mesh file {_shown(path)} does not exist") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ModelError(f"mesh file {_shown(path)} is not a regular file (a directory, device or pipe cannot be "
+                         "read as a mesh)")
+    ext, formats = mesh_format(path)
+    if info.st_size > MAX_MESH_BYTES:
+        raise ModelError(f"mesh file {_shown(path)} has {info.st_size:,} bytes; at most {MAX_MESH_BYTES:,} are "
+                         "read")
+    what = f"{ext[1:].upper()} ({', '.join(formats)})" if len(formats) > 1 else formats[0]
     try:
         mesh = meshio.read(path)
-    except (Exception, SystemExit) as exc:  # meshio raises many types, and exits, on unreadable files
-        reason = f"{exc}" if not isinstance(exc, SystemExit) else "not a valid file of its format"
-        raise ModelError(f"cannot read mesh file {str(path)!r}: {reason}") from None
-    points = np.asarray(mesh.points, dtype=float)
+    except (Exception, SystemExit):  # meshio raises many types, and exits, on unreadable files
+        # its messages may quote the file (a line of it): name the format only
+        raise ModelError(f"cannot read mesh file {_shown(path)} as {what}: the file is not a valid {what} "
+                         "mesh") from None
+    try:
+        points = np.asarray(mesh.points, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"mesh file {_shown(path)}: its points are not numbers") from None
     if points.ndim != 2 or points.shape[1] not in (2, 3) or not len(points):
-        raise ModelError(f"mesh file {str(path)!r}: points have shape {points.shape}; expected (n, 2) or (n, 3)")
+        raise ModelError(f"mesh file {_shown(path)}: points have shape {points.shape}; expected (n, 2) or (n, 3)")
+    if len(points) > MAX_POINTS:
+        raise ModelError(f"mesh file {_shown(path)} has {len(points):,} points; at most {MAX_POINTS:,} are allowed")
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
     if not np.all(np.isfinite(points)):
         bad = int(np.argwhere(~np.isfinite(points))[0, 0])
-        raise ModelError(f"mesh file {str(path)!r}: point {bad} has a non-finite coordinate")
+        raise ModelError(f"mesh file {_shown(path)}: point {bad} has a non-finite coordinate")
+    far = np.flatnonzero(np.abs(points).max(axis=1) > MAX_COORDINATE)
+    if far.size:
+        k = int(far[0])
+        raise ModelError(f"mesh file {_shown(path)}: point {k} has a coordinate of magnitude "
+                         f"{np.abs(points[k]).max():.3g}; at most {MAX_COORDINATE:.0e} m is allowed")
     cells: dict[str, list] = {}
     other = set()
     for block in mesh.cells:
@@ -119,19 +174,38 @@ def read_mesh(path) -> ImportedMesh:
             if block.type not in _IGNORED:
                 other.add(block.type)
             continue
-        cells.setdefault(family, []).append(np.asarray(block.data, dtype=np.int64)[:, : CORNERS[block.type]])
+        data = np.asarray(block.data)
+        if data.ndim != 2 or data.shape[1] < CORNERS[block.type] or not np.issubdtype(data.dtype, np.integer):
+            raise ModelError(f"mesh file {_shown(path)}: its {block.type} cells are not rows of point numbers")
+        data = data[:, : CORNERS[block.type]].astype(np.int64)
+        bad = np.argwhere((data < 0) | (data >= len(points)))
+        if bad.size:
+            k, c = (int(v) for v in bad[0])
+            raise ModelError(f"mesh file {_shown(path)}: {block.type} cell {k} refers to point {int(data[k, c])}; "
+                             f"the file has {len(points)} points (0..{len(points) - 1})")
+        cells.setdefault(family, []).append(data)
     if not cells:
         held = ", ".join(sorted(other)) or "no cells"
-        raise ModelError(f"mesh file {str(path)!r} has no line, triangle or quad cells (it holds {held})")
+        raise ModelError(f"mesh file {_shown(path)} has no line, triangle or quad cells (it holds {held})")
     if other:
-        raise ModelError(f"mesh file {str(path)!r}: cells of type {', '.join(sorted(other))} cannot be members; "
+        raise ModelError(f"mesh file {_shown(path)}: cells of type {', '.join(sorted(other))} cannot be members; "
                          "use a mesh of lines, triangles or quads")
-    sets = {str(k): np.unique(np.asarray(v, dtype=np.int64)) for k, v in (mesh.point_sets or {}).items()}
-    for name, blocks in (mesh.cell_sets or {}).items():
-        if str(name).startswith("gmsh:"):
-            continue  # gmsh's bookkeeping, not a named set
-        nodes = [np.asarray(mesh.cells[i].data)[np.asarray(ids, dtype=np.int64)].ravel()
-                 for i, ids in enumerate(blocks) if ids is not None and len(ids)]
-        if nodes:
-            sets.setdefault(str(name), np.unique(np.concatenate(nodes)))
+    sets = {}
+    try:
+        for name, ids in (mesh.point_sets or {}).items():
+            sets[str(name)] = np.unique(np.asarray(ids, dtype=np.int64))
+        for name, blocks in (mesh.cell_sets or {}).items():
+            if str(name).startswith("gmsh:"):
+                continue  # gmsh's bookkeeping, not a named set
+            nodes = [np.asarray(mesh.cells[i].data)[np.asarray(ids, dtype=np.int64)].ravel()
+                     for i, ids in enumerate(blocks) if ids is not None and len(ids)]
+            if nodes:
+                sets.setdefault(str(name), np.unique(np.concatenate(nodes)))
+    except (TypeError, ValueError, IndexError):
+        raise ModelError(f"mesh file {_shown(path)}: its named sets refer to cells or points it does not "
+                         "have") from None
+    for name, ids in sets.items():
+        if ids.size and (ids[0] < 0 or ids[-1] >= len(points)):
+            raise ModelError(f"mesh file {_shown(path)}: the named set {name[:60]!r} refers to point "
+                             f"{int(ids[0] if ids[0] < 0 else ids[-1])}; the file has {len(points)} points")
     return ImportedMesh(points, {f: np.concatenate(v) for f, v in cells.items()}, sets, str(path))
