@@ -116,6 +116,11 @@ def main(argv=None) -> int:
     except ShellformError as exc:
         print(f"shellform: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # a folder that cannot be written, a full disk: the system's words, without a traceback
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"shellform: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("shellform: interrupted; `shellform run ... --resume` continues from the last checkpoint",
               file=sys.stderr)

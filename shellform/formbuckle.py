@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MechanismError, ModelError, SceneError
-from .io.checkpoint import load_checkpoint, save_checkpoint
+from .io.checkpoint import CheckpointMismatch, load_checkpoint, save_checkpoint
+from .io.summary import RunRecord
 from .model import Structure
 
 #: rod section of the gridshell built on a found form when [rods] leaves it open
@@ -94,12 +95,22 @@ def dome_rods(result, section: dict, plane_z: float | None = None):
 # -- checkpoints of the relaxation ------------------------------------------------------------
 
 
+#: the parts of a form-finding scene a relaxation state depends on (not the solver
+#: settings: a resumed run may change the scheme or the tolerance and still finds the same rest)
+NET_PARTS = ("geometry", "supports", "ropes", "masses", "loads")
+
+
 def _fingerprint(params: dict) -> str:
-    """What a saved state depends on: the net (not the solver settings, which a resumed run may change)."""
-    net = {k: params[k] for k in ("geometry", "supports", "ropes", "masses", "loads")}
+    """What a saved state depends on: a hash of each part of the net (JSON text)."""
+    net = {k: params[k] for k in NET_PARTS}
     # the strain limit only decides which ropes a report names
     net["ropes"] = {k: v for k, v in net["ropes"].items() if k != "strain_limit"}
-    return hashlib.sha256(json.dumps(net, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    return json.dumps({k: hashlib.sha256(json.dumps(v, sort_keys=True, default=str).encode()).hexdigest()[:16]
+                       for k, v in net.items()}, sort_keys=True)
+
+
+class NetCheckpointMismatch(SceneError, CheckpointMismatch):
+    """A relaxation checkpoint of another net (a scene error and a refused checkpoint)."""
 
 
 class RelaxationCheckpoint:
@@ -137,9 +148,18 @@ class RelaxationCheckpoint:
         data = load_checkpoint(self.path)
         if data is None:
             return None
-        if str(data["fingerprint"]) != self.fingerprint:
-            raise SceneError("--resume", f"{self.path} holds the state of a different net (geometry, supports, "
-                             "ropes, masses or loads changed); delete it or run without --resume")
+        saved = str(data["fingerprint"])
+        if saved != self.fingerprint:
+            try:
+                saved_parts = json.loads(saved)
+            except ValueError:  # the single hash of an older checkpoint
+                saved_parts = {}
+            now = json.loads(self.fingerprint)
+            changed = [k for k in now if saved_parts.get(k) != now[k]] if saved_parts else list(NET_PARTS)
+            raise NetCheckpointMismatch(
+                "--resume", f"{self.path} holds the state of a different net ({', '.join(changed)} "
+                f"{'differ' if len(changed) > 1 or changed[0].endswith('s') else 'differs'}); delete it or run "
+                "without --resume")
         return data
 
 
@@ -206,7 +226,9 @@ def _find_form(scene: dict, out: Path, progress: Progress, resume: bool, keep: d
         return export_form(scene, res, inv, Path(out_dir)) + [RELAXATION_CHECKPOINT]
 
     try:
-        summary = run_mra_case(params, out, progress, q0=q0, v0=v0, callback=checkpoint, export=export)
+        # the caller writes summary.json, with the stages of the whole run
+        summary = run_mra_case(params, out, progress, q0=q0, v0=v0, callback=checkpoint, export=export,
+                               summary_file=None)
     except ModelError as exc:
         # the net could not be built or held: name the part of the scene that describes it
         text = str(exc)
@@ -239,14 +261,17 @@ def _section(scene: dict) -> dict:
             "rest_shape": rods.get("rest_shape", "straight")}
 
 
-def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False) -> dict:
+def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False,
+                        record: RunRecord | None = None) -> dict:
     """Form-find a validated planform scene, then trace the buckling of its rod gridshell.
 
     The rod section is ``[rods]`` (``E``, ``G``, ``radius``, ``density``,
     ``rest_shape``), the continuation bounds ``[analysis.buckling]``. Writes
     the form-finding files and ``buckling_path.csv``, ``buckling_path.xdmf``,
     ``buckling_curve.png``, ``buckling_path_events.json`` and the path's
-    checkpoint.
+    checkpoint. ``record`` (the run's summary) is told when each of the two
+    stages, ``form_finding`` and ``buckling``, starts and ends, so that a
+    run killed while buckling leaves a summary that says so.
     """
     from .io import write_series
     from .pipeline import run_continuation_case
@@ -258,13 +283,22 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     b = scene["analysis"]["buckling"]
+
+    def stage(method, *args, **kwargs):
+        if record is not None:
+            getattr(record, method)(*args, **kwargs)
+
     found: dict = {}
+    stage("start", "form_finding")
     summary = _find_form(scene, out, say, resume, keep=found)
     summary["analysis"] = "form_and_buckle"
     summary["form_finding_wall_time_s"] = summary.pop("wall_time_s")
     form = found["result"]
+    stage("finish", "form_finding", bool(form.converged), summary.get("message"), body=summary)
     if not form.converged:
+        # buckling of a form that was not found would answer another question: not run
         return summary
+    stage("start", "buckling", body=summary)
     sec = _section(scene)
     structure, network = dome_rods(form, sec["section"])
     system = build_rod_system(network, gravity_scaled=True)
@@ -274,7 +308,9 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
         erected = solve_static(system, lam=0.0)
         say(f"erection (prestress relaxed, no load): {erected.message}")
         if not erected.success:
-            return {**summary, "converged": False, "message": f"erection failed: {erected.message}"}
+            summary = {**summary, "converged": False, "message": f"erection failed: {erected.message}"}
+            stage("finish", "buckling", False, summary["message"], body=summary)
+            return summary
         q_start = erected.q
         system.accept(q_start)
     apex = int(np.argmax(structure.nodes[:, 2]))
@@ -307,5 +343,8 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     }
     summary["converged"] = bool(summary["converged"] and path.success)
     summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf"]
+    if "warnings" in path_summary:
+        summary["warnings"] = summary.get("warnings", []) + path_summary["warnings"]
     summary["wall_time_s"] = time.perf_counter() - t0
+    stage("finish", "buckling", bool(path.success), path.message, body=summary)
     return summary

@@ -8,6 +8,7 @@ output folder and continue from it with ``resume=True``.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -17,7 +18,10 @@ import numpy as np
 from . import scene as scenes
 from .errors import SceneError
 from .io import write_json, write_series, write_state
-from .io.checkpoint import load_checkpoint, save_checkpoint
+from .io.checkpoint import (CheckpointMismatch, check_fingerprint, fingerprint_record, load_checkpoint,
+                            model_fingerprint, save_checkpoint)
+from .io.files import output_folder, output_lock, write_bytes
+from .io.summary import RunRecord
 from .io.table import plot_curve, plot_path, write_csv, write_path_csv
 from .model import AXES
 from .schema import check_table
@@ -38,6 +42,18 @@ def _sizes(structure, system) -> dict:
         "n_free_dof": system.n_free,
         "effects": [e.name for e in system.effects],
     }
+
+
+def _plot(path: Path, draw: Callable[[], Path], files: list, notes: list) -> None:
+    """Draw a plot (``draw()`` writes ``path``); a plot that fails is noted, not raised.
+
+    A plot only pictures results already on disk; failing the run over it,
+    after the analysis, would lose the summary instead.
+    """
+    try:
+        files.append(draw().name)
+    except Exception as exc:  # noqa: BLE001 (whatever Matplotlib raised goes to the summary)
+        notes.append(f"plot {path.name} not drawn: {type(exc).__name__}: {exc}")
 
 
 def _write_final(scene: dict, out: Path, system, q, lam: float, formats=None) -> list[str]:
@@ -173,13 +189,23 @@ def run_continuation_case(
     result = trace_path(system, control, callback=on_point, checkpoint=ck, checkpoint_every=checkpoint_every,
                         resume=resume, **options)
     files = [write_path_csv(result, out / f"{name}.csv").name]
-    if plot_file is not None:
-        default_y = "load factor" if control == "load" else "reaction conjugate to the prescribed displacement"
-        files.append(plot_path(result, out / (plot_file or f"{name}.png"), x=x, xlabel=xlabel or x,
-                               ylabel=ylabel or default_y, title=title, event_x=event_x).name)
     summary = result.summary()
     summary["files"] = files + [f"{name}_events.json", ck.name]
+    # the outcome is on disk before the plot is drawn
     write_json(out / f"{name}_events.json", summary)
+    if plot_file is not None:
+        default_y = "load factor" if control == "load" else "reaction conjugate to the prescribed displacement"
+        plots, notes = [], []
+        png = out / (plot_file or f"{name}.png")
+        _plot(png, lambda: plot_path(result, png, x=x, xlabel=xlabel or x, ylabel=ylabel or default_y, title=title,
+                                     event_x=event_x), plots, notes)
+        summary["files"] = files + plots + summary["files"][1:]
+        if notes:
+            summary["warnings"] = notes
+            for note in notes:
+                if progress is not None:
+                    progress(note)
+        write_json(out / f"{name}_events.json", summary)
     if progress is not None:
         progress(f"{result.message} ({result.steps} steps, {len(result.events)} events)")
     return result, summary
@@ -270,11 +296,19 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
     t0, v0, step = 0.0, None, 0
     frames = [(0.0, q0.copy(), lam(0.0))]
     ck_path = out / DYNAMICS_CHECKPOINT
+    # what the motion depends on: the model with its masses, and every setting but the end time
+    # (a resumed run may go on further) and how often a checkpoint is written
+    fingerprint = model_fingerprint(system, mass=mass)
+    settings = {k: v for k, v in d.items() if k not in ("duration", "checkpoint_interval")}
+    settings.update(load_factor=a["load_factor"], prescribed=a["prescribed"], linear_solver=a["linear_solver"],
+                    start=scenes.start_state(scene, structure))
     saved = load_checkpoint(ck_path) if resume else None
     if saved is not None:
         if saved["q"].shape != q0.shape:
-            raise SceneError("--resume", f"{ck_path} holds a state of {saved['q'].size} DOFs; this scene has "
-                             f"{q0.size}: delete it or run without --resume")
+            raise CheckpointMismatch(f"{ck_path} holds a state of {saved['q'].size} DOFs; this scene has "
+                                     f"{q0.size}: delete it or run without --resume")
+        check_fingerprint(ck_path, json.loads(str(saved["fingerprint"])) if "fingerprint" in saved else None,
+                          fingerprint, settings)
         t0, q0, v0, step = float(saved["t"]), saved["q"], saved["v"], int(saved["step"])
         history = {c: list(saved[f"history_{c}"]) for c in columns}
         frames = [(float(t), q, lam(float(t))) for t, q in zip(saved["frame_t"], saved["frame_q"])]
@@ -285,6 +319,7 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
 
     def save(t, q, v):
         save_checkpoint(ck_path, t=t, q=q, v=v, step=state["step"],
+                        fingerprint=fingerprint_record(fingerprint, settings),
                         frame_t=[f[0] for f in frames], frame_q=np.array([f[1] for f in frames]),
                         **{f"history_{c}": np.asarray(history[c]) for c in columns})
         state["last"] = time.perf_counter()
@@ -324,8 +359,9 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
     write_series(out / "dynamics.xdmf", system, frames)
     files.append("dynamics.xdmf")
     y = monitor[0] if monitor else "max_displacement"
-    files.append(plot_curve(out / "dynamics.png", history["time"], history[y], "time [s]", f"{y} [m]",
-                            scene["title"]).name)
+    notes: list[str] = []
+    _plot(out / "dynamics.png", lambda: plot_curve(out / "dynamics.png", history["time"], history[y], "time [s]",
+                                                   f"{y} [m]", scene["title"]), files, notes)
     files += _write_final(scene, out, system, q_end, lam(t_end),
                           [f for f in scene["output"]["formats"] if f != "xdmf"])
     files.append(DYNAMICS_CHECKPOINT)
@@ -346,6 +382,8 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
         **_sizes(structure, system),
         "files": files,
     }
+    if notes:
+        summary["warnings"] = notes
     if model.imperfection:
         summary["imperfection"] = model.imperfection
     return summary
@@ -410,11 +448,12 @@ def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = F
     table = {"dD": res.dD, "dD_over_R": res.x, "force": res.force, "force_normalised": res.y,
              "segment": res.segment, "n_negative": res.n_negative, "label": res.labels}
     files = [write_csv(out / "indentation.csv", table).name]
-    files.append(plot_curve(
+    notes: list[str] = []
+    _plot(out / "indentation.png", lambda: plot_curve(
         out / "indentation.png", res.x, res.y, "apex displacement dD / R", "indentation force -sum(Fz) R^2 / EI",
         scene["title"] or f"hemisphere, mode {ind['mode']}",
         marks=[(s.dD_over_R, s.force_before, f"snap {k + 1}") for k, s in enumerate(res.snaps)],
-        branch=res.segment, branch_name="segment").name)
+        branch=res.segment, branch_name="segment"), files, notes)
     write_series(out / "indentation.xdmf", system, [(x, q, 1.0) for x, q in zip(res.x, res.path_states)])
     files.append("indentation.xdmf")
     configurations = []
@@ -433,43 +472,85 @@ def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = F
                                 "amplitude_over_EI_R2": float(amplitude / scale), "seed": int(seed)},
                "force_scale_N": float(scale), "configurations": configurations}
     summary["files"] = files
+    if notes:
+        summary["warnings"] = notes
     return summary
 
 
 # -- dispatch ---------------------------------------------------------------------------------
 
 
-def run_form_finding(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
+def run_form_finding(scene: dict, out: Path, progress: Progress, resume: bool = False,
+                     record: RunRecord | None = None) -> dict:
     from .formbuckle import run_form_finding as run
 
     return run(scene, out, progress, resume)
 
 
-def run_form_and_buckling(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
+def run_form_and_buckling(scene: dict, out: Path, progress: Progress, resume: bool = False,
+                          record: RunRecord | None = None) -> dict:
     from .formbuckle import run_form_and_buckle
 
-    return run_form_and_buckle(scene, out, progress, resume)
+    return run_form_and_buckle(scene, out, progress, resume, record=record)
 
 
 ANALYSES = {"static": run_static, "continuation": run_continuation, "dynamics": run_dynamics,
             "mra": run_form_finding, "form_and_buckle": run_form_and_buckling, "indentation": run_indentation}
 
+#: the stages of each analysis, in order; a runner of more than one reports them itself
+STAGES = {"static": ("static",), "continuation": ("continuation",), "dynamics": ("time_stepping",),
+          "mra": ("form_finding",), "form_and_buckle": ("form_finding", "buckling"),
+          "indentation": ("indentation",)}
+
 
 def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False) -> dict:
     """Run a validated scene and write ``summary.json`` and its result files to ``out_dir``.
 
-    The summary is written even when the analysis does not converge (with
-    ``converged = false`` and the solver's message), so a failed run still
-    says what happened. ``resume`` continues an interrupted continuation,
-    relaxation or time stepping from the checkpoint in ``out_dir``.
+    The summary is written when the run starts (``run_status = "running"``), as
+    each stage starts and ends, and at the end, also when the analysis does
+    not converge or fails (with ``converged = false`` and the message), so
+    the summary of a run that was killed never claims success. Its
+    ``stages`` say how far the run got; ``converged`` is true only when every
+    stage finished and converged. ``resume`` continues an interrupted
+    continuation, relaxation or time stepping from the checkpoint in
+    ``out_dir``.
+
+    The output folder is locked for the run: a second run into it is refused.
+
+    Raises
+    ------
+    OutputError
+        ``out_dir`` is a file, or another run holds it.
     """
     progress = progress or _quiet
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    summary = {"title": scene["title"]}
-    summary.update(ANALYSES[scene["analysis"]["type"]](scene, out, progress, resume))
-    summary["wall_time_s"] = time.perf_counter() - t0
-    write_json(out / "summary.json", summary)
-    return summary
-
+    kind = scene["analysis"]["type"]
+    stages = STAGES[kind]
+    with output_lock(output_folder(out_dir)) as out:
+        t0 = time.perf_counter()
+        record = RunRecord(out / "summary.json", {"title": scene["title"], "analysis": kind}, stages)
+        previous = (out / "summary.json").read_bytes() if (out / "summary.json").is_file() else None
+        if len(stages) == 1:
+            record.start(stages[0])
+        else:
+            record.write()
+        try:
+            if len(stages) == 1:
+                summary = ANALYSES[kind](scene, out, progress, resume)
+                record.finish(stages[0], bool(summary.get("converged", False)), summary.get("message"))
+            else:
+                summary = ANALYSES[kind](scene, out, progress, resume, record=record)
+        except CheckpointMismatch:
+            # refused before anything was computed: the folder stays as the last run left it
+            if previous is not None:
+                write_bytes(out / "summary.json", previous)
+            raise
+        except KeyboardInterrupt:
+            record.stop("interrupted", "interrupted; `shellform run ... --resume` continues from the last checkpoint")
+            raise
+        except BaseException as exc:
+            record.stop("failed", f"{type(exc).__name__}: {exc}")
+            raise
+        summary = {"title": scene["title"], **summary}
+        summary["wall_time_s"] = time.perf_counter() - t0
+        record.write(summary)
+        return {**summary, "run_status": record.status, "converged": record.converged, "stages": record.stages}
