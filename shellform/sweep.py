@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from .errors import SceneError
+from .io.files import output_folder, output_lock
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -129,11 +130,9 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
         first of ``max_displacement``, ``rise``, ``iterations`` present).
     """
     try:
-        from dask.distributed import Client, LocalCluster
+        import dask.distributed  # noqa: F401
     except ImportError:  # pragma: no cover
         raise SceneError("sweep", "needs Dask: pip install 'shellform[sweep]'") from None
-    from .io import write_json
-    from .io.table import plot_curve, write_csv
     from .scene import load_scene
 
     progress = progress or (lambda msg: None)
@@ -142,8 +141,16 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
     raw = tomllib.loads(scene_path.read_text())
     base_dir = str(scene_path.resolve().parent)
     cases = expand(raw, [parse_param(p) for p in params], base_dir)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    with output_lock(output_folder(out_dir)) as out:
+        return _sweep(cases, params, out, scene_path, base_dir, scheduler, workers, progress, plot_y)
+
+
+def _sweep(cases, params, out: Path, scene_path: Path, base_dir: str, scheduler, workers, progress, plot_y):
+    from dask.distributed import Client, LocalCluster
+
+    from .io import write_json
+    from .io.table import plot_curve, write_csv
+
     progress(f"sweep: {len(cases)} cases of {scene_path.name}")
     t0 = time.perf_counter()
     if scheduler:
@@ -173,6 +180,9 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
     y = plot_y or next((c for c in ("max_displacement", "rise", "iterations") if c in columns), None)
     first = keys[0]
     if y and all(isinstance(r.get(first), (int, float)) and isinstance(r.get(y), (int, float)) for r in rows):
-        plot_curve(out / "sweep.png", [r[first] for r in rows], [r[y] for r in rows], first, y,
-                   f"{scene_path.stem}: {y} against {first}")
+        try:
+            plot_curve(out / "sweep.png", [r[first] for r in rows], [r[y] for r in rows], first, y,
+                       f"{scene_path.stem}: {y} against {first}")
+        except Exception as exc:  # noqa: BLE001 (the table is written; a plot that fails is only reported)
+            progress(f"sweep.png not drawn: {type(exc).__name__}: {exc}")
     return rows

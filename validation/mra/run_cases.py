@@ -19,16 +19,23 @@ import sys  # noqa: E402
 import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from shellform.io.files import output_folder, safe_name, write_text  # noqa: E402
 from shellform.mra import run_mra_case  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
 
-def main(paths) -> list[dict]:
+def case_folder(results: Path, params: dict, path) -> Path:
+    """The results folder of a case: its name made a plain file name, so it stays in ``results``."""
+    return results / safe_name(params.get("name", Path(path).stem))
+
+
+def main(paths, results: Path = HERE / "results") -> list[dict]:
+    results = output_folder(results)
     rows = []
     for path in paths:
         params = tomllib.loads(Path(path).read_text())
-        out = HERE / "results" / params.get("name", Path(path).stem)
+        out = case_folder(results, params, path)
         print(f"== {path}")
         s = run_mra_case(params, out, progress=lambda msg: None if msg.startswith("  ") else print(msg))
         rows.append(s)
@@ -46,7 +53,7 @@ def main(paths) -> list[dict]:
     ran = {s["name"] for s in rows}
     for path in sorted(HERE.glob("*.toml")):
         name = tomllib.loads(path.read_text()).get("name", path.stem)
-        saved = HERE / "results" / name / "summary.json"
+        saved = case_folder(results, {"name": name}, path) / "summary.json"
         if name not in ran and saved.exists():
             rows.append(json.loads(saved.read_text()))
     rows.sort(key=lambda s: s["name"])
@@ -72,8 +79,7 @@ def main(paths) -> list[dict]:
             lines.append(f"|  ... length control ({lc['n_classes']} classes) | | | | {lc['converged']} | | | | | | | "
                          f"{lc['strain_max']:.1e} ({lc['n_overstretched_ropes']}) | conforming per round {lc['n_conforming_per_round']} of {s['n_ropes']} | | | | "
                          f"{lc['wall_time_s']:.2f} |")
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "cases.md").write_text("\n".join(lines) + "\n")
+    write_text(results / "cases.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
     return rows
 
