@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -25,12 +26,30 @@ def save_checkpoint(path, **arrays) -> Path:
     return path
 
 
+def open_checkpoint(path):
+    """``np.load`` of a checkpoint (use it in a ``with``); a file that is none is refused clearly.
+
+    Raises
+    ------
+    CheckpointMismatch
+        The file is not an ``.npz`` of arrays (a foreign or damaged file).
+    """
+    try:
+        data = np.load(path, allow_pickle=False)
+        if not hasattr(data, "files") or "meta" in data.files and data["meta"].dtype == object:
+            raise ValueError("not an archive of arrays")
+        return data
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise CheckpointMismatch(f"checkpoint {path} cannot be read ({exc}); delete it or run without "
+                                 "--resume") from None
+
+
 def load_checkpoint(path) -> dict[str, np.ndarray] | None:
     """The arrays of a checkpoint, or None when there is none."""
     path = Path(path)
     if not path.exists():
         return None
-    with np.load(path, allow_pickle=False) as data:
+    with open_checkpoint(path) as data:
         return {k: data[k] for k in data.files}
 
 
@@ -38,7 +57,7 @@ def load_checkpoint(path) -> dict[str, np.ndarray] | None:
 
 
 class CheckpointMismatch(ModelError):
-    """A checkpoint of another model, or of other analysis settings, offered for a resume."""
+    """A checkpoint that cannot be resumed from: of another model or other settings, or unreadable."""
 
 
 def digest(*items) -> str:

@@ -154,9 +154,9 @@ def safe_name(text: str, limit: int = 80) -> str:
     """A file name made from ``text`` that stays in the folder it is joined to.
 
     Every character outside ``A-Z a-z 0-9 . _ -`` becomes ``_`` and leading
-    dots go, so ``"../../x"`` gives ``"_.._x"`` (no separator, not ``..``).
+    dots go, runs of dots become one, so ``"../../x"`` gives ``"_._x"``.
     """
-    name = _UNSAFE.sub("_", str(text)).lstrip(".")[:limit]
+    name = re.sub(r"\.{2,}", ".", _UNSAFE.sub("_", str(text))).lstrip(".")[:limit]
     if not name or set(name) <= {"_", "."}:
         raise OutputError(f"{text!r} gives no usable file name: use letters, digits, '.', '_' or '-'")
     return name

@@ -78,7 +78,8 @@ class RunRecord:
         """Write the summary: the header, ``body`` (the results so far), the stages and the outcome."""
         if body is not None:
             self.body = dict(body)
-        data = {**self.header, **self.body, "status": self.status, "converged": self.converged,
+        # "run_status": an analysis may report a "status" of its own (why a path stopped)
+        data = {**self.header, **self.body, "run_status": self.status, "converged": self.converged,
                 "stages": self.stages}
         return write_json(self.path, data)
 
