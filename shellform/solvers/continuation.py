@@ -197,8 +197,9 @@ class ContinuationResult:
         One entry per path point: the columns of ``TABLE_COLUMNS`` plus the
         requested monitors.
     states : list of ndarray
-        Full DOF vectors of the points computed in this run (``state_steps``
-        gives their step numbers); empty when states were not stored.
+        Full DOF vectors of the path points (``state_steps`` gives their
+        step numbers; a resumed run has those of its checkpoint too); empty
+        when states were not stored.
     events : list of PathEvent
     timings : dict of str to float
         Wall time [s]: ``assembly`` (residual and tangent), ``linear_algebra``
@@ -954,12 +955,22 @@ class _Tracer:
             for name, value in obj.state().items():
                 arrays[f"history{k}_{name}"] = np.asarray(value)
         meta["history_objects"] = len(self.history_objects())
-        tmp = f"{path}.tmp.npz"
-        np.savez(tmp, meta=np.array(json.dumps(meta)), q=self.q, t_du=self.t_du, **arrays)
-        os.replace(tmp, path)
+        # the states of the points so far: a resumed run then has all of them, as an uninterrupted one
+        arrays["states"] = np.array(self.states, dtype=float).reshape(len(self.states), n)
+        arrays["state_steps"] = np.asarray(self.state_steps, dtype=np.int64)
+        from ..io.checkpoint import fingerprint_record, model_fingerprint, save_checkpoint
+
+        # what the path depends on, so that a resume of another model or other settings is
+        # refused: every option but the step budget and what is kept in memory
+        settings = {k: v for k, v in self.o.items() if k not in ("max_steps", "store_states", "monitors")}
+        settings.update(control=self.control, monitors=sorted(self.monitors))
+        meta["fingerprint"] = json.loads(fingerprint_record(model_fingerprint(self.system), settings))
+        save_checkpoint(path, meta=np.array(json.dumps(meta)), q=self.q, t_du=self.t_du, **arrays)
 
     def load(self, path):
-        with np.load(path, allow_pickle=False) as z:
+        from ..io.checkpoint import open_checkpoint
+
+        with open_checkpoint(path) as z:
             meta = json.loads(str(z["meta"]))
             if meta.get("version") != _CHECKPOINT_VERSION:
                 raise ModelError(f"checkpoint {path}: unsupported version {meta.get('version')}")
@@ -971,11 +982,19 @@ class _Tracer:
                 )
             if meta["monitors"] != list(self.monitors):
                 raise ModelError(f"checkpoint {path}: monitors {meta['monitors']} differ from {list(self.monitors)}")
+            from ..io.checkpoint import check_fingerprint, model_fingerprint
+
+            settings = {k: v for k, v in self.o.items() if k not in ("max_steps", "store_states", "monitors")}
+            settings.update(control=self.control, monitors=sorted(self.monitors))
+            check_fingerprint(path, meta.get("fingerprint"), model_fingerprint(self.system), settings)
             for k in self.table:
                 col = z[f"table_{k}"]
                 self.table[k] = [int(x) for x in col] if k in ("step", "branch", "n_negative", "iterations") else list(col)
             self.q = z["q"].copy()
             self.t_du = z["t_du"].copy()
+            if "states" in z.files:
+                self.states = list(z["states"])
+                self.state_steps = [int(k) for k in z["state_steps"]]
             modes, states, reacts, tans = z["event_modes"], z["event_states"], z["event_reactions"], z["event_tangents"]
             objs = self.history_objects()
             if meta.get("history_objects", 0) != len(objs):
@@ -1226,7 +1245,7 @@ def trace_path(
     resume : bool
         Continue from ``checkpoint`` if that file exists (the options must be the
         same as in the first run). The table and events of the earlier run are
-        kept; ``states`` holds only the points computed after resuming.
+        kept, and so are the states.
 
     Other Parameters
     ----------------
