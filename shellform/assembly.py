@@ -145,6 +145,18 @@ class System:
                 f -= self._factor(e, lam) * e.gradient(self.q_ref)
         return f
 
+    def forces_in_play(self, q: np.ndarray, lam: float = 1.0) -> np.ndarray:
+        """Per DOF, the summed magnitudes of every member force and applied force acting there.
+
+        The scale of an equilibrium test (:mod:`shellform.solvers.equilibrium`):
+        unlike the residual, the members' forces do not cancel in it, and
+        unlike a tangent it does not grow with a member's stiffness.
+        """
+        f = np.zeros(self.n_dof)
+        for e in self.effects:
+            f += abs(self._factor(e, lam)) * e.force_magnitudes(q)
+        return f
+
     def load_vector(self) -> np.ndarray:
         """Reference load ``f_ref`` (``-d residual / d lam``): the sum of the scaled loads."""
         f = np.zeros(self.n_dof)

@@ -12,9 +12,8 @@ from test_continuation_models import (
 )
 
 from shellform import Structure, build_system
-from shellform.errors import ModelError
+from shellform.errors import MechanismError, ModelError
 from shellform.solvers.continuation import PathPoint, trace_path
-from shellform.solvers.linear import SingularMatrixError
 
 Z_CR = L * np.tan(THETA_CR)
 
@@ -66,8 +65,10 @@ def test_exactly_singular_start_is_a_clear_error():
     s.fix([0, 2])
     s.fix([1], "xy")
     s.add_load([1], [0, 0, -1.0])
-    with pytest.raises(SingularMatrixError, match="singular at the starting point"):
+    with pytest.raises(MechanismError, match="singular at the starting point") as info:
         trace_path(build_system(s), "load", ds=0.01)
+    # the motion is named: node 1 moves alone, transversely
+    assert "moving node 1 (1.00)" in str(info.value)
 
 
 @pytest.mark.parametrize("control", ["load", "displacement"])
@@ -121,8 +122,14 @@ def test_bad_input_errors():
         trace_path(system, "time", ds=0.1)
     with pytest.raises(TypeError, match="unknown continuation option"):
         trace_path(system, "load", ds=0.1, step_size=2)
+    # no bound, no step and no critical point ahead to take a scale from: a bar pulled along its axis
+    s = Structure([[0, 0, 0], [1, 0, 0]])
+    s.add_bars([[0, 1]], 1.0)
+    s.fix([0])
+    s.fix([1], "yz")
+    s.add_load([1], [1.0, 0, 0])
     with pytest.raises(ModelError, match="step size"):
-        trace_path(system, "load")
+        trace_path(build_system(s), "load")
     with pytest.raises(ModelError, match="monitor 'tip'"):
         trace_path(system, "load", ds=0.1, monitors={"tip": 99})
     s = Structure([[0, 0, 0], [1, 0, 0]])

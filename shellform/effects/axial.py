@@ -118,11 +118,18 @@ class _AxialMembers(Effect):
         diff = np.where(a0 & a1, dl, d1 - d0)
         return 0.5 * (self.EA / self.L) * diff * (d1 + d0)
 
-    def gradient(self, q):
+    def _end_forces(self, q):
+        """Force of every member on its six end DOFs, shape (m, 6)."""
         d, length = self._geometry(q)
         N, _ = self._force(length)
         f = (N / length)[:, None] * d  # = N n, the pull of the member on node a
-        return scatter(self.n_dof, self.dofs, np.concatenate([-f, f], axis=1))
+        return np.concatenate([-f, f], axis=1)
+
+    def gradient(self, q):
+        return scatter(self.n_dof, self.dofs, self._end_forces(q))
+
+    def force_magnitudes(self, q):
+        return scatter(self.n_dof, self.dofs, np.abs(self._end_forces(q)))
 
     def hessian_pattern(self):
         return self._pattern

@@ -53,6 +53,19 @@ class Effect:
         rows, cols = self.hessian_pattern()
         return rows, cols, self.hessian_values(q)
 
+    def force_magnitudes(self, q: np.ndarray) -> np.ndarray:
+        """Per DOF, the sum of the magnitudes of the force contributions of every member.
+
+        The gradient sums members' forces that balance each other; this sums
+        their sizes instead, and so measures the forces in play at each DOF: the
+        scale against which an equilibrium residual is judged (a pre-stressed
+        net under no load still has forces in play). The default, the magnitude
+        of the effect's gradient, is right for an effect whose DOFs each get one
+        contribution (applied forces) and a lower bound otherwise, so it can only
+        make a convergence test stricter.
+        """
+        return np.abs(self.gradient(q))
+
     def member_results(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Per-member quantities for output (axial force, strain, ...); none by default."""
         return {}

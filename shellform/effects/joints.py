@@ -46,9 +46,15 @@ class PenaltyJoints(Effect):
         d = self._gap(q)
         return 0.5 * float(np.sum(self.k * np.einsum("ij,ij->i", d, d)))
 
-    def gradient(self, q):
+    def _end_forces(self, q):
         f = self.k[:, None] * self._gap(q)
-        return scatter(self.n_dof, self.dofs, np.concatenate([f, -f], axis=1))
+        return np.concatenate([f, -f], axis=1)
+
+    def gradient(self, q):
+        return scatter(self.n_dof, self.dofs, self._end_forces(q))
+
+    def force_magnitudes(self, q):
+        return scatter(self.n_dof, self.dofs, np.abs(self._end_forces(q)))
 
     def hessian_pattern(self):
         return self._pattern

@@ -359,11 +359,17 @@ class HingeEffect(Effect):
     def energy(self, q):
         return float(np.sum(self._local(q, 0)[0]))
 
-    def gradient(self, q):
+    def _stencil_forces(self, q):
+        """Gradient of every hinge's energy on its 11 stencil DOFs, shape (h, 11)."""
         t0, t1, l0, l1, _ = self._geometry(q)
         _, g = self._local(q, 1)[:2]
-        g11, _ = to_stencil(t0, t1, l0, l1, g)
-        return scatter(self.n_dof, self.stencil, g11)
+        return to_stencil(t0, t1, l0, l1, g)[0]
+
+    def gradient(self, q):
+        return scatter(self.n_dof, self.stencil, self._stencil_forces(q))
+
+    def force_magnitudes(self, q):
+        return scatter(self.n_dof, self.stencil, np.abs(self._stencil_forces(q)))
 
     def hessian_pattern(self):
         return self._pattern

@@ -48,10 +48,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import ModelError
+from ..errors import MechanismError, ModelError
 from .linear import LDLFactor, LUFactor, SingularMatrixError
+from .mechanism import describe_soft_modes
+from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck
 from .newton import solve_static
 from .stability import InertiaError, critical_modes, inertia
+from .step_bounds import FOLD_OVERSHOOT, fold_distance, linearised_critical_increment
 
 CONTROLS = ("load", "displacement")
 CONSTRAINTS = ("spherical", "cylindrical")
@@ -266,7 +269,7 @@ class _StepFailure(Exception):
 # ---------------------------------------------------------------------------
 class _Timer:
     def __init__(self):
-        self.t = {"assembly": 0.0, "linear_algebra": 0.0, "stability": 0.0, "event_location": 0.0}
+        self.t = {"assembly": 0.0, "linear_algebra": 0.0, "stability": 0.0, "event_location": 0.0, "step_bounds": 0.0}
 
     def add(self, key, t0):
         self.t[key] += time.perf_counter() - t0
@@ -495,6 +498,7 @@ class _Tracer:
         self.newton_total = 0
         self.switches = 0
         self.finished = None  # (status, message, success) once a run has ended
+        self.play = None  # forces in play at the last accepted point, computed when first needed
 
     # -- metric -----------------------------------------------------------------------
     def dot(self, du1, dp1, du2, dp2):
@@ -583,20 +587,22 @@ class _Tracer:
         o = self.o
         max_iter = o["max_iterations"]
         complex_roots = 0
-        norm0 = None
+        norm0 = previous = None
         for it in range(max_iter + 1):
             u, p = u0 + du, p0 + dp
             R, r, q = self.pb.residual(u, p)
             nR = float(np.linalg.norm(R))
             if not np.isfinite(nR):
                 raise _StepFailure(f"non-finite residual at corrector iteration {it}")
-            scale = max(self.pb.external_norm(p), float(np.linalg.norm(r[self.system.constrained])))
-            if scale == 0.0:
-                # nothing loaded yet (displacement control near mu = 0): relative to the predictor's imbalance
-                scale = nR if norm0 is None else norm0
-            tol = max(o["rtol"] * scale + o["atol"], self.round_floor)
-            if nR <= tol:
+            eq = self.equilibrium(nR, r, p, nR if norm0 is None else norm0)
+            if eq.met:
                 return u, p, q, r, it
+            # stalled at the rounding level: no iteration can do better
+            if eq.at_roundoff and (it == max_iter or (previous is not None and nR > 0.1 * previous)):
+                if eq.acceptable_at_roundoff:
+                    return u, p, q, r, it
+                raise _StepFailure(eq.roundoff_failure())
+            previous = nR
             if norm0 is None:
                 norm0 = max(nR, 1e-300)
             elif nR > 1e8 * norm0:
@@ -652,7 +658,26 @@ class _Tracer:
                 du, dp = du + x, dp + y
             if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
                 raise _StepFailure(f"non-finite correction at iteration {it + 1}")
-        raise _StepFailure(f"corrector did not converge in {max_iter} iterations (|G| = {nR:.3e} > {tol:.3e})")
+        raise _StepFailure(f"corrector did not converge in {max_iter} iterations ({eq.describe()})")
+
+    def equilibrium(self, norm: float, r: np.ndarray, p: float, unloaded_scale: float) -> EquilibriumCheck:
+        """The equilibrium test of a corrector iterate (residual norm ``norm``, full residual ``r``).
+
+        The forces in play are those of the last accepted point, the applied
+        loads and the reactions at this iterate; where all are zero (nothing
+        loaded yet, displacement control at ``mu = 0``) the residual is judged
+        against ``unloaded_scale``, the predictor's imbalance.
+        """
+        o = self.o
+        if self.play is None:
+            lam = self.pb.lam_mu(self.p)[0]
+            self.play = float(np.linalg.norm(self.system.forces_in_play(self.q, lam)[self.free]))
+        applied = self.pb.external_norm(p)
+        scale = max(applied, float(np.linalg.norm(r[self.system.constrained])), self.play)
+        if scale == 0.0:
+            scale = unloaded_scale
+        return EquilibriumCheck(norm, scale, o["rtol"] * scale + o["atol"], self.round_floor, o["roundoff_rtol"],
+                                applied)
 
     # -- recording ---------------------------------------------------------------------------
     def record(self, q, r, p, iterations, ds, n_neg):
@@ -674,7 +699,7 @@ class _Tracer:
     def start(self, q0, p0, direction):
         o = self.o
         lam, mu = self.pb.lam_mu(p0)
-        st = solve_static(self.system, q0, lam=lam, mu=mu, rtol=o["rtol"], max_iter=50)
+        st = solve_static(self.system, q0, lam=lam, mu=mu, rtol=o["rtol"], roundoff_rtol=o["roundoff_rtol"], max_iter=50)
         q = st.q
         u = q[self.free].copy()
         K, g = self.pb.jacobian(u, p0, q)
@@ -682,7 +707,7 @@ class _Tracer:
         # residuals cannot be computed more accurately than the rounding of the
         # member forces: stiffness times the rounding of the coordinates
         self.round_floor = 16.0 * np.finfo(float).eps * float(diag.max(initial=0.0)) * float(np.max(np.abs(q)))
-        if not st.success and not st.residual_norm <= self.round_floor:
+        if not st.success:
             raise ModelError(f"no equilibrium at the starting parameter {p0}: {st.message}")
         # stiffness scale for the arc-length metric: the larger of the reference and
         # the starting state, so that a start next to a critical point does not distort it
@@ -697,7 +722,9 @@ class _Tracer:
             except SingularMatrixError:
                 b = None
         if b is None:
-            raise SingularMatrixError(
+            soft = describe_soft_modes(self.system, K)
+            raise MechanismError(
+                f"the tangent is singular at the starting point: {soft}" if soft else
                 "the tangent is singular at the starting point; start from a regular state "
                 "(or use switch_branch from a located event)"
             )
@@ -714,6 +741,9 @@ class _Tracer:
             ng = float(np.linalg.norm(g))
             c = o["psi"] * (ng / self.kbar if ng > 0 else 1.0)
         self.c2 = c * c
+        # no step may be longer than the linearised distance to the nearest critical point
+        crit = self.critical_increment(u, p0, K, F, b, direction, q)
+        ds_crit = crit * math.sqrt(nb * nb + self.c2) if crit is not None else math.inf
         # first step: parameter increment sets the arc length unless ds is given
         if o["ds"] is not None:
             ds = float(o["ds"])
@@ -722,17 +752,18 @@ class _Tracer:
             if dp0 is None:
                 lo, hi = o["parameter_bounds"]
                 span = hi - p0 if direction >= 0 else p0 - lo
-                if not np.isfinite(span) or span <= 0:
+                if span <= 0 or not (np.isfinite(span) or crit is not None):
                     raise ModelError(
                         "continuation needs a step size: give ds, initial_increment or a finite parameter bound"
                     )
-                dp0 = span / 20.0
+                dp0 = min(span / 20.0, crit / 4.0 if crit is not None else math.inf)
             ds = abs(float(dp0)) * math.sqrt(nb * nb + self.c2)
         if not (np.isfinite(ds) and ds > 0):
             raise ModelError(f"initial arc length must be positive and finite, got {ds}")
         self.ds = ds
         self.ds_min = o["ds_min"] if o["ds_min"] is not None else ds * 1e-6
-        self.ds_max = o["ds_max"] if o["ds_max"] is not None else ds * 10.0
+        # an explicit first step is the user's to take; after it no default step exceeds the estimate
+        self.ds_max = o["ds_max"] if o["ds_max"] is not None else min(ds * 10.0, max(ds, ds_crit))
         t_du, t_dp = self.tangent_from(K, g, F, None, None)
         if direction < 0:
             t_du, t_dp = -t_du, -t_dp
@@ -743,6 +774,27 @@ class _Tracer:
         self.step, self.branch, self.s = 0, 0, 0.0
         r = self.system.residual(q, lam)
         return self.record(q, r, p0, st.iterations, 0.0, self.n_neg)
+
+    def critical_increment(self, u, p, K, F, du_dp, direction, q):
+        """Linearised parameter increment to the nearest critical point ahead (None: none or unknown).
+
+        Only from a stable start, where ``K`` is positive definite (see
+        :func:`~shellform.solvers.step_bounds.linearised_critical_increment`).
+        """
+        t0 = time.perf_counter()
+        try:
+            fac = F if isinstance(F, LDLFactor) else None
+            if F is None or inertia(K, factor=fac).n_negative != 0:
+                return None
+        except InertiaError:
+            return None
+        finally:
+            self.timer.add("stability", t0)
+        t0 = time.perf_counter()
+        crit = linearised_critical_increment(lambda uu, pp: self.pb.jacobian(uu, pp), u, p, K, F, du_dp,
+                                             1.0 if direction >= 0 else -1.0, float(np.max(np.abs(q))))
+        self.timer.add("step_bounds", t0)
+        return crit
 
     # -- one step with cut-backs -------------------------------------------------------------
     def attempt(self, ds):
@@ -787,9 +839,10 @@ class _Tracer:
                 ds *= 0.5
                 self.cut_back = True
                 if ds < self.ds_min:
+                    soft = describe_soft_modes(self.system, self.pb.jacobian(self.u, self.p, self.q)[0])
                     raise _StepFailure(
                         f"step {self.step + 1}: arc length cut below ds_min = {self.ds_min:.3e} "
-                        f"at parameter {self.p:.6g}; last failure: {last_msg}"
+                        f"at parameter {self.p:.6g}; last failure: {last_msg}{'; ' + soft if soft else ''}"
                     ) from None
 
     def land(self, u, p, lo_b, hi_b):
@@ -799,13 +852,18 @@ class _Tracer:
         if not 0.0 <= w <= 1.0:
             return None
         u = self.u + w * (u - self.u)
+        previous = None
         for it in range(self.o["max_iterations"] + 1):
             R, r, q = self.pb.residual(u, pb)
             nR = float(np.linalg.norm(R))
             if not np.isfinite(nR):
                 return None
-            scale = max(self.pb.external_norm(pb), float(np.linalg.norm(r[self.system.constrained])))
-            if nR <= max(self.o["rtol"] * scale + self.o["atol"], self.round_floor):
+            eq = self.equilibrium(nR, r, pb, nR if previous is None else previous)
+            stalled = eq.at_roundoff and previous is not None and nR > 0.1 * previous
+            if stalled and not eq.acceptable_at_roundoff:
+                return None
+            previous = nR
+            if eq.met or stalled:
                 du, dp = u - self.u, pb - self.p
                 try:
                     t_du, t_dp, n_neg, _ = self.analyse_point(u, pb, du, dp, q)
@@ -1093,6 +1151,10 @@ class _Tracer:
                 if self.cut_back:
                     factor = min(factor, 1.0)
                 self.ds = min(max(ds * factor, self.ds_min), self.ds_max)
+                # dp/ds falling towards a fold: the next step may pass it, but not go far beyond
+                to_fold = fold_distance(A[3], t_dp, ds)
+                if to_fold is not None:
+                    self.ds = min(self.ds, max(FOLD_OVERSHOOT * to_fold, self.ds_min))
                 if callback is not None and callback(pt):
                     raise StopIteration
                 # leave the bifurcation point along the critical mode (or the given shape)
@@ -1152,10 +1214,12 @@ class _Tracer:
 
     # -- effects with history (rod reference frames) ------------------------------------------------
     def accept(self, q):
-        """Tell effects with history that ``q`` is accepted (rod frames follow the path)."""
+        """Tell effects with history that ``q`` is accepted (rod frames follow the path), and
+        take its member forces as the forces in play of the next step's equilibrium tests."""
         hook = getattr(self.system, "accept", None)
         if hook is not None:
             hook(q)
+        self.play = None
 
     def history_objects(self):
         """Objects holding path history that a checkpoint must carry (rod reference frames)."""
@@ -1190,7 +1254,7 @@ def _options(**kw) -> dict:
     o = dict(
         ds=None, initial_increment=None, ds_min=None, ds_max=None, constraint="spherical", psi=1.0,
         parameter_scale=None, max_steps=200, parameter_bounds=(-np.inf, np.inf), max_displacement=None,
-        rtol=1e-10, atol=0.0, max_iterations=15, target_iterations=4, max_angle_deg=45.0,
+        rtol=1e-10, atol=0.0, roundoff_rtol=ROUNDOFF_RTOL, max_iterations=15, target_iterations=4, max_angle_deg=45.0,
         max_inertia_cutbacks=1, stability=True, detect_events=True, locate_tol=1e-8,
         on_bifurcation="continue", branch_side=1, switch_direction=None, switch_ds=None, max_switches=1,
         stop_after_events=None, fixed_lam=1.0, fixed_mu=0.0, monitors=None, displacement_dof=None,
@@ -1274,9 +1338,14 @@ def trace_path(
         Stop when a free DOF moves further than this from the reference.
     rtol, atol : float
         Corrector tolerance ``|G| <= rtol * scale + atol``; ``scale`` is the
-        larger of the applied-load norm and the reaction norm (the predictor's
-        residual while both are zero). The tolerance is never below the
-        rounding level of the residual, ``16 eps max(diag K) max|q|``.
+        forces in play (the member forces at the last accepted point, the
+        applied loads and the reactions; the predictor's residual while all
+        are zero). See :mod:`shellform.solvers.equilibrium`.
+    roundoff_rtol : float
+        A corrector whose residual stalls at the rounding level of the member
+        forces (``16 eps max(diag K) max|q|``) above that tolerance is accepted
+        only below this fraction of the forces in play; otherwise the step
+        fails and says why.
     max_iterations : int
         Corrector iterations before a cut-back (default 15).
     target_iterations : int

@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ModelError
+from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck, roundoff_level
 from .linear import SingularMatrixError, factorize
 
 
@@ -118,6 +119,7 @@ class _Stepper:
         self.mu = mu
         self.paths = tuple(paths)
         self.rtol, self.atol = rtol, atol
+        self.roundoff_rtol = ROUNDOFF_RTOL
         self.max_iter = max_iter
         self.linear_solver = linear_solver
         self.size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
@@ -150,19 +152,33 @@ class _Stepper:
             R = Mf * (dq - h * v_k[free]) / h**2 + Cf * dq / h + r[free]
             return r, R
 
-        ext = float(np.linalg.norm(sysm.external_force(lam)))
-        inertia_scale = float(np.linalg.norm(Mf * v_k[free])) / h
+        # forces in play: loads, the inertia of the motion, and the member forces at the
+        # step's start (the scale changes little within a step, and is computed once)
+        applied = float(np.linalg.norm(sysm.external_force(lam)))
+        in_play = max(applied, float(np.linalg.norm(Mf * v_k[free])) / h,
+                      float(np.linalg.norm(sysm.forces_in_play(q_k, lam)[free])))
+
+        def test(r, norm, J):
+            scale = max(in_play, float(np.linalg.norm(r[sysm.constrained])))
+            return EquilibriumCheck(norm, scale, self.rtol * scale + self.atol,
+                                    roundoff_level(J.diagonal(), q), self.roundoff_rtol, applied)
+
+        def at_roundoff(eq, it):
+            if eq.acceptable_at_roundoff:
+                return q, r, it
+            return None, f"Newton iteration {it}: {eq.roundoff_failure()}", it
+
         r, R = residual(q)
-        norm = float(np.linalg.norm(R))
+        norm = previous = float(np.linalg.norm(R))
         eps = np.finfo(float).eps
         for it in range(1, self.max_iter + 1):
             K = sysm.tangent_free(q)
             J = K + sp.diags(jac_diag)
-            scale = max(ext, inertia_scale, float(np.linalg.norm(r[sysm.constrained])))
-            floor = 10.0 * eps * float(np.linalg.norm(J.diagonal())) * max(float(np.abs(q).max()), 1.0)
-            tol = max(self.rtol * scale + self.atol, floor)
-            if norm <= tol:
+            eq = test(r, norm, J)
+            if eq.met:
                 return q, r, it - 1
+            if eq.at_roundoff and it > 1 and norm > 0.1 * previous:
+                return at_roundoff(eq, it - 1)
             phi0 = merit(q)
             diag = np.abs(J.diagonal())
             base_shift = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
@@ -194,15 +210,18 @@ class _Stepper:
                     alpha *= 0.5
                 if moved:
                     break
+            if eq.at_roundoff and (not moved or not n_try < norm):
+                return at_roundoff(eq, it - 1)
             if not moved:
                 return None, f"Newton iteration {it}: no step decreased the incremental potential", it
+            previous = norm
             q, r, R, norm = q_try, r_try, R_try, n_try
-        K = sysm.tangent_free(q)
-        scale = max(ext, inertia_scale, float(np.linalg.norm(r[sysm.constrained])))
-        floor = 10.0 * eps * float(np.linalg.norm((K + sp.diags(jac_diag)).diagonal())) * max(float(np.abs(q).max()), 1.0)
-        if norm <= max(self.rtol * scale + self.atol, floor):
+        eq = test(r, norm, sysm.tangent_free(q) + sp.diags(jac_diag))
+        if eq.met:
             return q, r, self.max_iter
-        return None, f"Newton did not converge in {self.max_iter} iterations (|R| = {norm:.3e})", self.max_iter
+        if eq.at_roundoff:
+            return at_roundoff(eq, self.max_iter)
+        return None, f"Newton did not converge in {self.max_iter} iterations ({eq.describe()})", self.max_iter
 
 
 def implicit_euler(

@@ -25,7 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .equilibrium import ROUNDOFF_RTOL, check
 from .linear import LDLFactor, SingularMatrixError, factorize
+from .mechanism import describe_soft_modes
 
 
 @dataclass
@@ -54,6 +56,8 @@ class StaticResult:
         Steps where the tangent was singular or not a descent direction and a
         diagonal shift was added.
     wall_time_s : float
+    forces_in_play : float
+        The scale the residual was judged against (:mod:`shellform.solvers.equilibrium`).
     """
 
     q: np.ndarray
@@ -67,6 +71,7 @@ class StaticResult:
     reactions: np.ndarray | None = None
     regularised_steps: int = 0
     wall_time_s: float = 0.0
+    forces_in_play: float = float("nan")
 
     @property
     def residual_norm(self) -> float:
@@ -90,6 +95,7 @@ def solve_static(
     mu: float = 0.0,
     rtol: float = 1e-10,
     atol: float = 1e-12,
+    roundoff_rtol: float = ROUNDOFF_RTOL,
     max_iter: int = 100,
     merit: str = "energy",
     linear_solver: str = "direct",
@@ -112,9 +118,13 @@ def solve_static(
         Prescribed-displacement parameter.
     rtol, atol : float
         Converged when ``|r_free| <= rtol * scale + atol``, with ``scale`` the
-        larger of the external-force norm and the reaction norm, or when the
-        residual reaches the round-off floor of the tangent (reported in the
-        message), below which no iteration can go.
+        forces in play (member forces, applied loads and reactions; see
+        :mod:`shellform.solvers.equilibrium`).
+    roundoff_rtol : float
+        Where the residual stalls at the rounding level of the member forces
+        above that tolerance, the state still counts as converged when its
+        residual is below this fraction of the forces in play; otherwise the
+        solve fails and says why.
     max_iter : int
         Newton iterations before giving up.
     merit : {"energy", "residual"}
@@ -151,53 +161,40 @@ def solve_static(
         r = system.residual(qq, lam)
         return r, float(np.linalg.norm(r[free]))
 
-    ext = system.external_force(lam)
     size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
     r, norm = evaluate(q)
     norms = [norm]
     n_reg = 0
 
-    def tolerance(rr, K=None):
-        scale = max(float(np.linalg.norm(ext)), float(np.linalg.norm(rr[system.constrained])))
-        tol_ = rtol * scale + atol
-        if K is not None:
-            # round-off floor: a residual entry sums member forces of size
-            # stiffness x coordinate, each known to machine precision only;
-            # asking for less than this would never terminate on stiff members
-            floor = 10.0 * np.finfo(float).eps * np.linalg.norm(K.diagonal()) * float(np.abs(q).max())
-            tol_ = max(tol_, floor)
-        return tol_
+    def test(rr, K=None):
+        return check(system, q, lam, rr, rtol, atol, None if K is None else K.diagonal(), roundoff_rtol)
 
     def result(success, message, it):
         return StaticResult(
             q=q, success=success, message=message, iterations=it, residual_norms=norms,
-            tolerance=tol, lam=lam, mu=mu, reactions=system.reactions(q, lam),
-            regularised_steps=n_reg, wall_time_s=time.perf_counter() - t0,
+            tolerance=eq.tolerance, lam=lam, mu=mu, reactions=system.reactions(q, lam),
+            regularised_steps=n_reg, wall_time_s=time.perf_counter() - t0, forces_in_play=eq.scale,
         )
 
-    tol = tolerance(r)
+    def at_roundoff(it):
+        """The end of a solve whose residual stalled at the rounding level."""
+        if eq.acceptable_at_roundoff:
+            return result(True, f"converged to the rounding level of the member forces: {eq.describe()}", it)
+        return result(False, f"iteration {it}: {eq.roundoff_failure()}", it)
+
+    eq = test(r)
     if not np.isfinite(norm):
         return result(False, "residual is not finite at the starting state", 0)
-
-    def converged_message():
-        kind = "converged" if norm <= tolerance(r) else "converged to the round-off floor"
-        return f"{kind}: |r| = {norm:.3e} <= {tol:.3e}"
-
     projection_cache = {}  # the projections of all steps share one symbolic factorisation
-    polish = None  # one more step at the round-off floor: None unused, True under way, False spent
     for it in range(1, max_iter + 1):
-        if norm <= tolerance(r):
-            return result(True, converged_message(), it - 1)
+        if eq.met:
+            return result(True, f"converged: {eq.describe()}", it - 1)
         K = system.tangent_free(q)
-        tol = tolerance(r, K)
-        if norm <= tol:
-            # the floor is an estimate: right after a quadratic drop the residual
-            # is usually still above the true rounding level, and one more step
-            # (whose failure is no error) gets the reactions to full accuracy
-            if polish is None and len(norms) >= 2 and norms[-1] < 1e-3 * norms[-2]:
-                polish = True
-            else:
-                return result(True, converged_message(), it - 1)
+        eq = test(r, K)
+        # at the rounding level a step can still gain a digit right after a fast
+        # drop; once the residual stops falling, no iteration can help
+        if eq.at_roundoff and len(norms) >= 2 and norms[-1] > 0.1 * norms[-2]:
+            return at_roundoff(it - 1)
         rf = r[free]
         phi0 = system.energy(q, lam) if merit == "energy" else 0.5 * norm**2
         accepted = False
@@ -220,21 +217,23 @@ def solve_static(
                 accepted = True
                 n_reg += int(shift > 0.0)
                 break
-        if polish and (not accepted or not norm_try < norm):
-            return result(True, converged_message(), it - 1)  # at the rounding level already
+        if eq.at_roundoff and (not accepted or not norm_try < norm):
+            return at_roundoff(it - 1)
         if not accepted:
             why = "the tangent is singular even with a large diagonal shift" if singular else (
                 f"no step decreased the {merit} merit, even with a large diagonal shift")
-            return result(False, f"iteration {it}: {why}; the structure may be a mechanism at this state", it - 1)
+            soft = describe_soft_modes(system, K) or "the structure may be a mechanism at this state"
+            return result(False, f"iteration {it}: {why} ({eq.describe()}); {soft}", it - 1)
         q, r, norm = q_try, r_try, norm_try
-        polish = False if polish else polish
         norms.append(norm)
         if callback is not None:
             callback(it, norm)
-        tol = max(tol, tolerance(r))
-    if norm <= tol:
-        return result(True, converged_message(), max_iter)
-    return result(False, f"not converged in {max_iter} iterations: |r| = {norm:.3e} > tolerance {tol:.3e}", max_iter)
+        eq = test(r, K)
+    if eq.met:
+        return result(True, f"converged: {eq.describe()}", max_iter)
+    if eq.at_roundoff:
+        return at_roundoff(max_iter)
+    return result(False, f"not converged in {max_iter} iterations: {eq.describe()}", max_iter)
 
 
 def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks, projection=None):
