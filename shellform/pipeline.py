@@ -20,7 +20,7 @@ from .errors import SceneError
 from .io import write_json, write_series, write_state
 from .io.checkpoint import (CheckpointMismatch, check_fingerprint, fingerprint_record, load_checkpoint,
                             model_fingerprint, save_checkpoint)
-from .io.files import output_folder, output_lock, write_bytes
+from .io.files import output_folder, output_lock, remove_stale_temporaries, write_bytes
 from .io.summary import RunRecord
 from .io.table import plot_curve, plot_path, write_csv, write_path_csv
 from .model import AXES
@@ -526,6 +526,7 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
     kind = scene["analysis"]["type"]
     stages = STAGES[kind]
     with output_lock(output_folder(out_dir)) as out:
+        remove_stale_temporaries(out)  # of a run killed while writing: no one else writes here now
         t0 = time.perf_counter()
         record = RunRecord(out / "summary.json", {"title": scene["title"], "analysis": kind}, stages)
         previous = (out / "summary.json").read_bytes() if (out / "summary.json").is_file() else None

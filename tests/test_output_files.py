@@ -136,6 +136,18 @@ def test_out_naming_a_file_is_a_clean_error(tmp_path, capsys):
     assert taken.read_text() == "not a folder"
 
 
+def test_temporaries_of_a_killed_writer_are_removed_by_the_next_run(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    leftovers = [".path-ab12cd_9.tmp.xdmf", ".summary-k2j4h5g6.tmp.json", ".state-aaaaaaaa.tmp.vtu"]
+    kept = [".hidden", ".notes-x.tmp", "path.csv.tmp", "mine-abcdefgh.tmp.csv"]
+    for name in leftovers + kept:
+        (out / name).write_text("x")
+    assert run_scene(parse_scene(_toml(VON_MISES)), out)["converged"]
+    names = {p.name for p in out.iterdir()}
+    assert not names & set(leftovers) and set(kept) <= names
+
+
 def test_a_second_run_into_a_busy_folder_is_refused_naming_folder_and_pid(tmp_path, capsys):
     scene = tmp_path / "s.toml"
     scene.write_text(VON_MISES)

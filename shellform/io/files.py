@@ -147,6 +147,26 @@ def output_folder(path) -> Path:
     return path
 
 
+#: the names :func:`_temporary` gives: ".<stem>-<8 random characters>.tmp<suffix>"
+_TEMPORARY = re.compile(r"^\..*-[a-z0-9_]{8}\.tmp(\.[A-Za-z0-9]+)?$")
+
+
+def remove_stale_temporaries(folder) -> list[str]:
+    """Remove the temporary files that writers killed mid-write left in ``folder``.
+
+    Call it with the folder's lock held (:func:`output_lock`): then no other
+    run can be writing there, so every temporary file is a leftover.
+    Returns the names removed.
+    """
+    removed = []
+    for entry in os.scandir(folder):
+        if _TEMPORARY.match(entry.name) and (entry.is_file(follow_symlinks=False) or entry.is_symlink()):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(entry.path)
+                removed.append(entry.name)
+    return sorted(removed)
+
+
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 

@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..io import write_json
-from ..io.files import output_folder, output_lock, write_text
+from ..io.files import output_folder, output_lock, remove_stale_temporaries, write_text
 
 
 @dataclass
@@ -95,6 +95,7 @@ def run_validation(names, out_dir, progress=None) -> list[CaseResult]:
     if unknown:
         raise KeyError(f"unknown validation case(s) {unknown}; available: {', '.join(CASES)}")
     with output_lock(output_folder(out_dir)) as out:
+        remove_stale_temporaries(out)
         return _run_cases(names, out, progress)
 
 
