@@ -20,6 +20,9 @@ from .errors import MechanismError, ModelError
 
 AXES = {"x": 0, "y": 1, "z": 2}
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
+#: largest coordinate magnitude [m]: beyond it double precision leaves no digits for member lengths
+#: (a scene is held to 1e6 m, see :data:`shellform.schema.UNIT_BOUNDS`)
+MAX_COORDINATE = 1.0e12
 
 
 @dataclass(frozen=True)
@@ -140,6 +143,11 @@ class Structure:
         if bad.size:
             i, c = bad[0]
             raise ModelError(f"nodes: coordinate {'xyz'[c]} of node {i} is not finite ({nodes[i, c]})")
+        bad = np.argwhere(np.abs(nodes) > MAX_COORDINATE)
+        if bad.size:
+            i, c = bad[0]
+            raise ModelError(f"nodes: coordinate {'xyz'[c]} of node {i} is {nodes[i, c]:.3g}; magnitudes beyond "
+                             f"{MAX_COORDINATE:.0e} m leave no digits for member lengths (is a unit off?)")
         self.nodes = nodes
         self.groups: list[MemberGroup] = []
         self.n_twist = 0

@@ -137,10 +137,10 @@ def _number(path, value, key: Key, integer=False):
         _fail(path, value, "an integer")
     if isinstance(value, float) and not np.isfinite(value):
         _fail(path, value, "a finite number")
+    _check_range(path, value, key)
     bound = key.bound(integer)
     if abs(value) > bound:
         _fail(path, value, f"a number of magnitude <= {_bound_text(bound, key.unit)}")
-    _check_range(path, value, key)
     return int(value) if integer else float(value)
 
 
@@ -157,13 +157,14 @@ def _at(path: str, index) -> str:
     return f"{path}{list(index)}" if len(index) else path
 
 
-def _numbers(path, value, shape_doc, ndim, key: Key, integer=False) -> np.ndarray:
+def _numbers(path, value, shape_doc, ndim, key: Key, integer=False, width=None) -> np.ndarray:
     """A nested list of ``ndim`` levels of numbers as an array, every entry checked.
 
     Refuses what NumPy would coerce (booleans, numeric strings), ragged rows,
-    deeper nesting, non-finite values, values out of the key's bounds and more
-    entries per dimension than ``LIMITS["items"]``; the error names the entry
-    (``key[i, j]``) and what is allowed.
+    deeper nesting, rows of other than ``width`` numbers, non-finite values,
+    values out of the key's bounds and more entries per dimension than
+    ``LIMITS["items"]``; the error names the entry (``key[i, j]``) and what is
+    allowed.
     """
     want = "an integer" if integer else "a number"
     bound = key.bound(integer)
@@ -179,6 +180,7 @@ def _numbers(path, value, shape_doc, ndim, key: Key, integer=False) -> np.ndarra
                 raise SceneError(_at(path, index), f"got {short(v)}; expected {want} ({shape_doc})")
             if isinstance(v, float) and not np.isfinite(v):
                 raise SceneError(_at(path, index), "value is not finite" + where(index))
+            _check_range(_at(path, index), v, key)
             if abs(v) > bound:
                 raise SceneError(_at(path, index), f"got {short(v)}; expected {want} of magnitude <= "
                                  f"{_bound_text(bound, key.unit)}" + where(index))
@@ -188,6 +190,8 @@ def _numbers(path, value, shape_doc, ndim, key: Key, integer=False) -> np.ndarra
             _fail(_at(path, index), v, shape_doc if not index else f"a list ({shape_doc})")
         if len(v) > LIMITS["items"]:
             raise SceneError(_at(path, index), f"has {len(v):,} entries; at most {LIMITS['items']:,} are allowed")
+        if width is not None and level == ndim - 1 and len(v) != width:
+            raise SceneError(path, f"entry {list(index)} has {len(v)} numbers; expected {shape_doc}")
         if len(shape) == level:
             shape.append(len(v))
         elif shape[level] != len(v):
@@ -199,21 +203,11 @@ def _numbers(path, value, shape_doc, ndim, key: Key, integer=False) -> np.ndarra
     walk(value, 0, ())
     if len(shape) < ndim:  # an empty list somewhere above the numbers
         shape += [0] * (ndim - len(shape))
-    arr = np.array(flat, dtype=np.int64 if integer else float).reshape(shape)
-    if key.minimum is not None or key.maximum is not None:
-        low = arr < key.minimum if key.minimum is not None else np.zeros(arr.shape, bool)
-        if key.minimum is not None and key.exclusive_minimum:
-            low |= arr == key.minimum
-        high = arr > key.maximum if key.maximum is not None else np.zeros(arr.shape, bool)
-        bad = np.argwhere(low | high)
-        if bad.size:
-            i = tuple(int(k) for k in bad[0])
-            _check_range(_at(path, i), arr[i].item(), key)
-    return arr
+    return np.array(flat, dtype=np.int64 if integer else float).reshape(shape)
 
 
 def _array(path, value, shape_doc, key: Key, ncol=None, integer=False, ndim=None):
-    arr = _numbers(path, value, shape_doc, ndim or (2 if ncol is not None else 1), key, integer)
+    arr = _numbers(path, value, shape_doc, ndim or (2 if ncol is not None else 1), key, integer, ncol)
     if ncol is not None and (arr.shape[1] != ncol or arr.shape[0] == 0):
         _fail(path, value, shape_doc)
     if arr.size == 0 and ndim:
