@@ -540,10 +540,12 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
                 record.finish(stages[0], bool(summary.get("converged", False)), summary.get("message"))
             else:
                 summary = ANALYSES[kind](scene, out, progress, resume, record=record)
-        except CheckpointMismatch:
+        except CheckpointMismatch as exc:
             # refused before anything was computed: the folder stays as the last run left it
             if previous is not None:
                 write_bytes(out / "summary.json", previous)
+            else:
+                record.stop("failed", str(exc))
             raise
         except KeyboardInterrupt:
             record.stop("interrupted", "interrupted; `shellform run ... --resume` continues from the last checkpoint")

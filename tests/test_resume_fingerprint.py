@@ -165,6 +165,24 @@ def test_relaxation_refuses_another_net_naming_the_part(tmp_path):
     assert isinstance(info.value, CheckpointMismatch)
 
 
+def test_a_refused_resume_into_a_folder_without_summary_says_it_failed(tmp_path):
+    ck = _interrupted_path(tmp_path)  # a checkpoint and no summary, as a run killed early leaves
+    (tmp_path / "path.npz").rename(tmp_path / "path_checkpoint.npz")
+    scene = (ROOT / "shellform" / "scenes" / "von_mises.toml").read_text().replace("EA = 1.0e4", "EA = 3.0e4")
+    assert ck.parent == tmp_path
+    with pytest.raises(CheckpointMismatch):
+        run_scene(parse_scene(_toml(scene)), tmp_path, resume=True)
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["run_status"] == "failed" and s["converged"] is False
+    assert "differ" in s["stages"]["continuation"]["message"]
+
+
+def _toml(text):
+    import tomllib
+
+    return tomllib.loads(text)
+
+
 def test_a_refused_resume_leaves_the_folder_as_it_was(tmp_path, capsys):
     scene = tmp_path / "s.toml"
     text = (ROOT / "shellform" / "scenes" / "von_mises.toml").read_text()

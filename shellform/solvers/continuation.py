@@ -1026,20 +1026,20 @@ class _Tracer:
         save_checkpoint(path, meta=np.array(json.dumps(meta)), q=self.q, t_du=self.t_du, **arrays)
 
     def load(self, path):
-        from ..io.checkpoint import open_checkpoint
+        from ..io.checkpoint import CheckpointMismatch, open_checkpoint
 
         with open_checkpoint(path) as z:
             meta = json.loads(str(z["meta"]))
             if meta.get("version") != _CHECKPOINT_VERSION:
-                raise ModelError(f"checkpoint {path}: unsupported version {meta.get('version')}")
+                raise CheckpointMismatch(f"checkpoint {path}: unsupported version {meta.get('version')}")
             if meta["control"] != self.control or meta["n_dof"] != self.system.n_dof or meta["n_free"] != self.free.size:
-                raise ModelError(
+                raise CheckpointMismatch(
                     f"checkpoint {path} belongs to a different problem (control {meta['control']}, "
                     f"{meta['n_dof']} DOFs, {meta['n_free']} free; this run: control {self.control}, "
                     f"{self.system.n_dof} DOFs, {self.free.size} free)"
                 )
             if meta["monitors"] != list(self.monitors):
-                raise ModelError(f"checkpoint {path}: monitors {meta['monitors']} differ from {list(self.monitors)}")
+                raise CheckpointMismatch(f"checkpoint {path}: monitors {meta['monitors']} differ from {list(self.monitors)}")
             from ..io.checkpoint import check_fingerprint, model_fingerprint
 
             settings = {k: v for k, v in self.o.items() if k not in ("max_steps", "store_states", "monitors")}
@@ -1056,7 +1056,7 @@ class _Tracer:
             modes, states, reacts, tans = z["event_modes"], z["event_states"], z["event_reactions"], z["event_tangents"]
             objs = self.history_objects()
             if meta.get("history_objects", 0) != len(objs):
-                raise ModelError(
+                raise CheckpointMismatch(
                     f"checkpoint {path} holds history for {meta.get('history_objects', 0)} objects, "
                     f"this system has {len(objs)}"
                 )
