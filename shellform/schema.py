@@ -401,6 +401,8 @@ def describe(table: Table, path: str = "", level: int = 2) -> list[str]:
             doc = key.doc
             if key.choices:
                 doc += f" One of: {_choice_text(key.choices)}."
+            if key.minimum is not None and key.minimum != 0:
+                doc += f" {'Greater than' if key.exclusive_minimum else 'At least'} {key.minimum}."
             if key.maximum is not None:
                 doc += f" At most {key.maximum}."
             if key.magnitude is not None:
@@ -476,8 +478,9 @@ _DIVISIONS = dict(minimum=1, maximum=10_000)
 _NONNEG = dict(minimum=0.0)
 #: a rope's rest length beyond (1 + 10) times its reference length is a typing error
 MAX_SLACK = 10.0
-#: planform sizes: beyond 1000 km is a typing error (and overflows the mesher's arithmetic)
-_SIZE = dict(minimum=0.0, exclusive_minimum=True, maximum=1.0e6)
+#: planform sizes: below a millimetre or beyond 1000 km is a typing error (and below 1e-8 m or beyond
+#: 1e300 m the mesher's arithmetic fails)
+_SIZE = dict(minimum=1.0e-3, maximum=1.0e6)
 
 GEOMETRY = Table(
     discriminator="type",
