@@ -171,6 +171,7 @@ def test_a_second_run_into_a_busy_folder_is_refused_naming_folder_and_pid(tmp_pa
     # the holder died without cleaning up: its lock file is stale and does not block
     assert (out / LOCK_NAME).read_text().strip() == str(holder.pid)
     assert main(["run", str(scene), "--out", str(out), "--quiet"]) == 0
+    assert not (out / LOCK_NAME).exists()  # a run that ends removes its lock file
 
 
 def test_the_lock_is_held_for_the_run_and_refuses_in_process_too(tmp_path):

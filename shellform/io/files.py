@@ -195,8 +195,9 @@ def output_lock(folder) -> Iterator[Path]:
     """Hold the lock of an output folder for the duration of the block.
 
     The lock is an ``flock`` on ``folder/.shellform.lock``, which holds the
-    pid of the run. The kernel drops it when that process ends however it
-    ends, so a stale file of a killed run never blocks the next one.
+    pid of the run and is removed when the block ends. The kernel drops the
+    lock when its process ends however it ends, so the file a killed run
+    leaves behind never blocks the next one.
 
     Raises
     ------
@@ -207,22 +208,35 @@ def output_lock(folder) -> Iterator[Path]:
 
     folder = output_folder(folder)
     path = folder / LOCK_NAME
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, file_mode())
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise OutputError(f"output folder {folder}: {LOCK_NAME} is a symlink; remove it") from None
-        raise OutputError(f"output folder {folder}: cannot create its lock file ({exc.strerror})") from None
-    try:
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, file_mode())
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise OutputError(f"output folder {folder}: {LOCK_NAME} is a symlink; remove it") from None
+            raise OutputError(f"output folder {folder}: cannot create its lock file ({exc.strerror})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            holder = _holder(fd)
+            os.close(fd)
             raise OutputError(f"output folder {folder.resolve()} is in use by another shellform run (pid "
-                              f"{_holder(fd)}); wait for it to end or choose another --out") from None
+                              f"{holder}); wait for it to end or choose another --out") from None
+        # the run before may have removed the file between our open and our lock:
+        # a lock on a removed file guards nothing, so lock the file now there
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(path, follow_symlinks=False))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         yield folder
     finally:
-        # closing releases the lock; the file stays (removing it would let a
-        # third run lock a new file while a second still waits on the old one)
+        # removed while still locked, so no one can lock this file after us
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)
         os.close(fd)
