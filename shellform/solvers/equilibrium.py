@@ -7,14 +7,15 @@ scale never grows with a member's stiffness, so a stiff member cannot hide an
 unbalanced load.
 
 A residual is a sum of member forces, each computed from coordinates known to
-machine precision only: a member of axial stiffness ``EA / L`` rounds its force
-to about ``eps EA |x| / L``. Where that rounding level lies above the
-tolerance no iteration can meet it; the solvers then stop when the residual
-stalls there and call the state converged only when its relative residual is
-still below ``roundoff_rtol`` (default ``1e-6`` of the forces in play). Above
-that the result is an honest failure that names the achieved residual and the
-reason: an exact answer for a model with members ``10^12`` times stiffer than
-others needs more digits than a double has.
+machine precision only: a member of axial stiffness ``k = EA / L`` rounds its
+force to about ``eps k |x|``, and the residual's norm to about
+``eps |diag K| max|x|`` (:func:`roundoff_level`). Where that level lies above
+the tolerance no iteration can meet it. A residual within the rounding level
+is then accepted when it is still below ``roundoff_rtol`` (default ``1e-6``)
+of the forces in play; a residual that stalls near the rounding level above
+that is an honest failure that names the achieved residual and the reason: an
+exact answer for a model whose members differ in stiffness by ``10^12`` needs
+more digits than a double has.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ import numpy as np
 EPS = float(np.finfo(float).eps)
 #: largest residual, relative to the forces in play, accepted where round-off stops the iteration
 ROUNDOFF_RTOL = 1e-6
+#: a residual that stops falling within this many rounding levels has stalled there
+STALL_BAND = 10.0
 
 
 @dataclass(frozen=True)
@@ -67,28 +70,32 @@ class EquilibriumCheck:
         return bool(self.residual <= self.tolerance)
 
     @property
-    def at_roundoff(self) -> bool:
-        """The residual is within the rounding level, where iterating further cannot help."""
-        return bool(self.residual <= self.roundoff)
+    def converged(self) -> bool:
+        """The tolerance is met, or the residual is within the rounding level and small enough.
+
+        Where nothing is loaded and the forces in play are themselves within
+        the rounding level (a rigid motion under prescribed displacements), the
+        state is force-free as far as doubles can tell, and any residual at that
+        level is accepted. Applied loads are never noise: they must be balanced.
+        """
+        return self.met or (self.residual <= self.roundoff and self.acceptable_at_roundoff)
+
+    @property
+    def near_roundoff(self) -> bool:
+        """Within a few rounding levels: a residual that stops falling here cannot be pushed lower."""
+        return bool(self.residual <= STALL_BAND * self.roundoff)
 
     @property
     def acceptable_at_roundoff(self) -> bool:
-        """Stalled at the rounding level with a relative residual still small enough to call converged.
-
-        Where nothing is loaded and the forces in play are themselves below
-        the rounding of one member force (a rigid motion under prescribed
-        displacements: a tenth of :func:`roundoff_level`, which carries a
-        safety factor of ten), the state is force-free as far as doubles can
-        tell, and any residual at the rounding level is accepted. Applied loads
-        are never noise: they must be balanced.
-        """
-        noise = self.applied == 0.0 and self.scale <= 0.1 * self.roundoff
-        return self.at_roundoff and bool(noise or self.residual <= self.roundoff_rtol * self.scale)
+        """Small enough to be accepted where round-off stops the iteration (see :attr:`converged`)."""
+        noise = self.applied == 0.0 and self.scale <= self.roundoff
+        return bool(noise or self.residual <= self.roundoff_rtol * self.scale)
 
     def describe(self) -> str:
         """The residual against its tolerance, in words."""
+        kind = "" if self.met or not self.acceptable_at_roundoff else ", at the rounding level of the member forces"
         return (f"|r| = {self.residual:.3e} against a tolerance of {self.tolerance:.3e} "
-                f"(forces in play {self.scale:.3e}, relative residual {self.relative:.1e})")
+                f"(forces in play {self.scale:.3e}, relative residual {self.relative:.1e}{kind})")
 
     def roundoff_failure(self) -> str:
         """Why a residual stalled above the tolerance is not converged."""
@@ -99,33 +106,26 @@ class EquilibriumCheck:
                 "for double precision to balance these forces")
 
 
-def force_scale(system, q: np.ndarray, lam: float, r: np.ndarray) -> tuple[float, float]:
-    """Forces in play at ``q`` with residual ``r`` (all DOFs), and the norm of the applied loads.
-
-    See :class:`EquilibriumCheck`.
-    """
-    play = float(np.linalg.norm(system.forces_in_play(q, lam)[system.free]))
-    applied = float(np.linalg.norm(system.external_force(lam)))
-    return max(play, applied, float(np.linalg.norm(r[system.constrained]))), applied
-
-
 def roundoff_level(K_diagonal: np.ndarray, q: np.ndarray) -> float:
-    """Rounding level of a residual: each member force is known to ``eps k |x|``.
-
-    Ten times that estimate, so that a residual stalled at the true rounding
-    level is recognised as such.
+    """Rounding level of a residual's norm: each member force is known to ``eps k |x|``.
 
     ``K_diagonal`` is the tangent's diagonal (member stiffnesses summed per
     DOF) and ``q`` the state, whose largest coordinate bounds the rounding of
     every member vector.
     """
-    return 10.0 * EPS * float(np.linalg.norm(K_diagonal)) * float(np.max(np.abs(q), initial=0.0))
+    return EPS * float(np.linalg.norm(K_diagonal)) * float(np.max(np.abs(q), initial=0.0))
 
 
 def check(system, q: np.ndarray, lam: float, r: np.ndarray, rtol: float, atol: float,
           K_diagonal: np.ndarray | None = None, roundoff_rtol: float = ROUNDOFF_RTOL) -> EquilibriumCheck:
-    """The equilibrium test of state ``q`` with residual ``r`` (all DOFs)."""
+    """The equilibrium test of state ``q`` with residual ``r`` (all DOFs).
+
+    ``K_diagonal`` (the free tangent's diagonal) gives the rounding level; without
+    it the rounding level is taken as zero and only the tolerance counts.
+    """
     norm = float(np.linalg.norm(r[system.free]))
-    scale, applied = force_scale(system, q, lam, r)
+    play = float(np.linalg.norm(system.forces_in_play(q, lam)[system.free]))
+    applied = float(np.linalg.norm(system.external_force(lam)))
+    scale = max(play, applied, float(np.linalg.norm(r[system.constrained])))
     floor = roundoff_level(K_diagonal, q) if K_diagonal is not None else 0.0
     return EquilibriumCheck(norm, scale, rtol * scale + atol, floor, roundoff_rtol, applied)

@@ -163,7 +163,7 @@ class _Stepper:
             return EquilibriumCheck(norm, scale, self.rtol * scale + self.atol,
                                     roundoff_level(J.diagonal(), q), self.roundoff_rtol, applied)
 
-        def at_roundoff(eq, it):
+        def stalled(eq, it):
             if eq.acceptable_at_roundoff:
                 return q, r, it
             return None, f"Newton iteration {it}: {eq.roundoff_failure()}", it
@@ -175,10 +175,10 @@ class _Stepper:
             K = sysm.tangent_free(q)
             J = K + sp.diags(jac_diag)
             eq = test(r, norm, J)
-            if eq.met:
+            if eq.converged:
                 return q, r, it - 1
-            if eq.at_roundoff and it > 1 and norm > 0.1 * previous:
-                return at_roundoff(eq, it - 1)
+            if eq.near_roundoff and it > 1 and norm > 0.1 * previous:
+                return stalled(eq, it - 1)
             phi0 = merit(q)
             diag = np.abs(J.diagonal())
             base_shift = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
@@ -210,17 +210,17 @@ class _Stepper:
                     alpha *= 0.5
                 if moved:
                     break
-            if eq.at_roundoff and (not moved or not n_try < norm):
-                return at_roundoff(eq, it - 1)
+            if eq.near_roundoff and (not moved or not n_try < norm):
+                return stalled(eq, it - 1)
             if not moved:
                 return None, f"Newton iteration {it}: no step decreased the incremental potential", it
             previous = norm
             q, r, R, norm = q_try, r_try, R_try, n_try
         eq = test(r, norm, sysm.tangent_free(q) + sp.diags(jac_diag))
-        if eq.met:
+        if eq.converged:
             return q, r, self.max_iter
-        if eq.at_roundoff:
-            return at_roundoff(eq, self.max_iter)
+        if eq.near_roundoff:
+            return stalled(eq, self.max_iter)
         return None, f"Newton did not converge in {self.max_iter} iterations ({eq.describe()})", self.max_iter
 
 
@@ -307,8 +307,10 @@ def implicit_euler(
     times, kinetic, resid = [], [], []
     dt = h
     free = system.free
-    while t < t_end - 1e-12 * h:
-        dt = min(dt, t_end - t)
+    while t_end - t > 1e-9 * h:
+        # the last step takes the remainder, never a sliver of a step after it (a step of
+        # 1e-14 s makes the inertia terms M / dt^2 large enough to drown every force)
+        dt = t_end - t if t_end - t <= dt * (1.0 + 1e-6) else dt
         q_new, r, its = stepper.step(q, v, t + dt, dt)
         if q_new is None:
             res.rejected_steps += 1

@@ -176,10 +176,10 @@ def solve_static(
             regularised_steps=n_reg, wall_time_s=time.perf_counter() - t0, forces_in_play=eq.scale,
         )
 
-    def at_roundoff(it):
-        """The end of a solve whose residual stalled at the rounding level."""
+    def stalled(it):
+        """The end of a solve whose residual stopped falling near the rounding level."""
         if eq.acceptable_at_roundoff:
-            return result(True, f"converged to the rounding level of the member forces: {eq.describe()}", it)
+            return result(True, f"converged: {eq.describe()}", it)
         return result(False, f"iteration {it}: {eq.roundoff_failure()}", it)
 
     eq = test(r)
@@ -187,14 +187,16 @@ def solve_static(
         return result(False, "residual is not finite at the starting state", 0)
     projection_cache = {}  # the projections of all steps share one symbolic factorisation
     for it in range(1, max_iter + 1):
-        if eq.met:
+        if eq.converged:
             return result(True, f"converged: {eq.describe()}", it - 1)
         K = system.tangent_free(q)
         eq = test(r, K)
-        # at the rounding level a step can still gain a digit right after a fast
+        if eq.converged:
+            return result(True, f"converged: {eq.describe()}", it - 1)
+        # near the rounding level a step can still gain a digit right after a fast
         # drop; once the residual stops falling, no iteration can help
-        if eq.at_roundoff and len(norms) >= 2 and norms[-1] > 0.1 * norms[-2]:
-            return at_roundoff(it - 1)
+        if eq.near_roundoff and len(norms) >= 2 and norms[-1] > 0.1 * norms[-2]:
+            return stalled(it - 1)
         rf = r[free]
         phi0 = system.energy(q, lam) if merit == "energy" else 0.5 * norm**2
         accepted = False
@@ -217,8 +219,8 @@ def solve_static(
                 accepted = True
                 n_reg += int(shift > 0.0)
                 break
-        if eq.at_roundoff and (not accepted or not norm_try < norm):
-            return at_roundoff(it - 1)
+        if eq.near_roundoff and (not accepted or not norm_try < norm):
+            return stalled(it - 1)
         if not accepted:
             why = "the tangent is singular even with a large diagonal shift" if singular else (
                 f"no step decreased the {merit} merit, even with a large diagonal shift")
@@ -229,10 +231,10 @@ def solve_static(
         if callback is not None:
             callback(it, norm)
         eq = test(r, K)
-    if eq.met:
+    if eq.converged:
         return result(True, f"converged: {eq.describe()}", max_iter)
-    if eq.at_roundoff:
-        return at_roundoff(max_iter)
+    if eq.near_roundoff:
+        return stalled(max_iter)
     return result(False, f"not converged in {max_iter} iterations: {eq.describe()}", max_iter)
 
 
