@@ -529,7 +529,8 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
         remove_stale_temporaries(out)  # of a run killed while writing: no one else writes here now
         t0 = time.perf_counter()
         record = RunRecord(out / "summary.json", {"title": scene["title"], "analysis": kind}, stages)
-        previous = (out / "summary.json").read_bytes() if (out / "summary.json").is_file() else None
+        last = out / "summary.json"
+        previous = last.read_bytes() if last.is_file() and not last.is_symlink() else None
         if len(stages) == 1:
             record.start(stages[0])
         else:
