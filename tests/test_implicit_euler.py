@@ -43,6 +43,18 @@ def test_spring_mass_follows_the_implicit_euler_recurrence(c):
     assert res.steps == n and max(res.newton_iterations) <= 2  # linear: one Newton step
 
 
+def test_last_step_takes_the_remainder_not_a_sliver():
+    """300 steps of 0.01 s add up to 3 - 2e-14 s: the last step takes the remainder, and no
+    step of 2e-14 s follows (its inertia terms M / dt^2 would drown every force)."""
+    s = oscillator()
+    q0 = s.reference_state()
+    q0[3] += 0.3
+    res = implicit_euler(build_system(s), 0.01, 3.0, q0=q0, damping=0.5)
+    assert res.success, res.message
+    assert res.steps == 300 and res.rejected_steps == 0
+    assert res.t == pytest.approx(3.0, abs=1e-12)
+
+
 def test_first_order_convergence_to_the_exact_oscillation():
     s = oscillator()
     system = build_system(s)
