@@ -248,6 +248,11 @@ def test_bad_tex_in_the_title_loses_nothing(tmp_path):
     assert (tmp_path / "load_displacement.png").stat().st_size > 1000
 
 
+def test_labels_with_bad_tex_are_drawn_as_typed(tmp_path):
+    png = plot_curve(tmp_path / "c.png", [0, 1], [0, 1], r"members[0].EA $\frac{", "rise $x^{", r"$\bad")
+    assert png.stat().st_size > 1000
+
+
 def test_a_long_title_is_cut_and_quick_to_plot(tmp_path):
     t0 = time.perf_counter()
     plot_curve(tmp_path / "c.png", [0, 1], [0, 1], "x", "y", "very long title " * 65_536)  # 1 MB

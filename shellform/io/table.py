@@ -102,6 +102,11 @@ def save_figure(fig, path, **kwargs) -> Path:
 PLOT_TEXT_LIMIT = 200
 
 
+def _cut(text) -> str:
+    text = str(text)
+    return text if len(text) <= PLOT_TEXT_LIMIT else text[: PLOT_TEXT_LIMIT - 1] + "\N{HORIZONTAL ELLIPSIS}"
+
+
 def plain_title(ax, text: str, width: int = 70, **kwargs) -> None:
     """Set a title from user text: shown as typed (no mathtext), cut to a sane length.
 
@@ -109,10 +114,7 @@ def plain_title(ax, text: str, width: int = 70, **kwargs) -> None:
     raises only when the figure is drawn, after the analysis; a very long
     title takes minutes to lay out.
     """
-    text = str(text)
-    if len(text) > PLOT_TEXT_LIMIT:
-        text = text[: PLOT_TEXT_LIMIT - 1] + "\N{HORIZONTAL ELLIPSIS}"
-    ax.set_title(textwrap.fill(text, width), parse_math=False, **kwargs)
+    ax.set_title(textwrap.fill(_cut(text), width), parse_math=False, **kwargs)
 
 
 def _save(fig, path: Path) -> Path:
@@ -188,8 +190,9 @@ def plot_curve(
     for mx, my, label in marks:
         ax.plot([mx], [my], "o", mfc="none", mec="red", ms=8, zorder=4)
         ax.annotate(label, (mx, my), textcoords="offset points", xytext=(5, 5), fontsize=8)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
+    # labels may come from a user too (sweep parameters): shown as typed, like the title
+    ax.set_xlabel(_cut(xlabel), parse_math=False)
+    ax.set_ylabel(_cut(ylabel), parse_math=False)
     if title:
         plain_title(ax, title, fontsize=9)
     ax.grid(True, alpha=0.3)
