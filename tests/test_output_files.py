@@ -241,7 +241,7 @@ def test_mra_case_named_to_escape_its_results_folder_stays_inside(tmp_path):
 
 def test_bad_tex_in_the_title_loses_nothing(tmp_path):
     raw = _toml(VON_MISES)
-    raw["title"] = r"snap-through of $\frac{a}{ at $x^{$"
+    raw["title"] = r"snap-through of $\bad$ at $x^{$"  # unknown symbol, unclosed group: mathtext raises
     summary = run_scene(parse_scene(raw), tmp_path)
     assert summary["converged"] and "warnings" not in summary
     assert json.loads((tmp_path / "summary.json").read_text())["converged"] is True
@@ -249,7 +249,7 @@ def test_bad_tex_in_the_title_loses_nothing(tmp_path):
 
 
 def test_labels_with_bad_tex_are_drawn_as_typed(tmp_path):
-    png = plot_curve(tmp_path / "c.png", [0, 1], [0, 1], r"members[0].EA $\frac{", "rise $x^{", r"$\bad")
+    png = plot_curve(tmp_path / "c.png", [0, 1], [0, 1], r"members[0].EA $\bad$", "rise $x^{$", r"$\bad$")
     assert png.stat().st_size > 1000
 
 
