@@ -2,8 +2,12 @@
 
 Every runner returns a JSON-ready summary (``run_scene`` writes it to
 ``summary.json``, also when the analysis did not converge) and writes its
-files through :mod:`shellform.io`. Long analyses keep a checkpoint in the
-output folder and continue from it with ``resume=True``.
+files through :mod:`shellform.io`. ``summary.json`` is written as the run
+starts and as each of its stages starts and ends (``stages``,
+``run_status``), so a run killed half-way never leaves a summary claiming
+success. One run at a time holds an output folder. Long analyses keep a
+checkpoint in the output folder and continue from it with ``resume=True``;
+a checkpoint of another model or other settings is refused.
 """
 
 from __future__ import annotations
