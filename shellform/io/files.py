@@ -222,6 +222,12 @@ def output_lock(folder) -> Iterator[Path]:
             os.close(fd)
             raise OutputError(f"output folder {folder.resolve()} is in use by another shellform run (pid "
                               f"{holder}); wait for it to end or choose another --out") from None
+        except OSError as exc:
+            if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+                os.close(fd)
+                raise
+            # a file system without locks (some network mounts): run unguarded rather than not at all
+            break
         # the run before may have removed the file between our open and our lock:
         # a lock on a removed file guards nothing, so lock the file now there
         try:
