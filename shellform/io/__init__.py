@@ -1,4 +1,9 @@
-"""Output: meshio meshes, JSON summaries."""
+"""Output, the only writer of files: meshio meshes, JSON summaries, tables and plots, checkpoints.
+
+Every file goes through :mod:`shellform.io.files` (a temporary file renamed over
+the target, the umask's mode); :func:`shellform.io.files.output_lock` keeps one
+run per output folder.
+"""
 
 from .mesh import state_mesh, write_mesh, write_series, write_state
 from .summary import write_json
