@@ -27,6 +27,7 @@ except the known ones listed in :data:`KNOWN` (each reproduced by an ``xfail`` t
     SHELLFORM_FUZZ_REPORT=fuzz.json python -m pytest -m slow tests/test_fuzz_scenes.py -s
         # the same, recording every bad case (scene and traceback) in fuzz.json instead of stopping
     SHELLFORM_FUZZ_CASES=300 ...                                      # a shorter slow run
+    SHELLFORM_FUZZ_SEED=7 ...                                         # other cases than the fixed ones
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 
 if sys.version_info >= (3, 11):
@@ -95,13 +96,123 @@ def _shrink_large_grid(data: dict) -> dict:
     return data
 
 
+#: scenes of the features the examples leave out (NURBS and elliptic planforms, displacement control,
+#: branch switching, random imperfections, point masses, the hemisphere's shared joints, found rest shapes)
+EXTRA_BASES = {
+    "bspline_net": {
+        "geometry": {"type": "bspline", "n_i": 6, "n_j": 6, "degree_u": 2, "degree_v": 2,
+                     "control_points": [[[0.0, 0.0, 0.0], [0.0, 2.0, 0.5], [0.0, 4.0, 0.0]],
+                                        [[2.0, 0.0, 0.5], [2.0, 2.0, 1.0], [2.0, 4.0, 0.5]],
+                                        [[4.0, 0.0, 0.0], [4.0, 2.0, 0.5], [4.0, 4.0, 0.0]]],
+                     "weights": [[1.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 1.0]]},
+        "supports": [{"groups": ["corners"]}, {"positions": [[3, 0], [3, -1]]}],
+        "ropes": {"slack": [0.05, 0.1], "mass_per_length": 2.0},
+        "masses": {"node_mass": 0.5},
+        "analysis": {"type": "mra", "relaxation": {"scheme": "kinetic", "max_iterations": 3000},
+                     "lengths": {"control": True, "n_classes": 2, "rounds": 1}},
+        "output": {"formats": ["vtk"], "meshes": False},
+    },
+    "ellipse_net": {
+        "geometry": {"type": "ellipse", "a": 4.0, "b": 2.0, "n": 8, "center": [1.0, 1.0, 0.5]},
+        "supports": [{"groups": ["boundary"], "dofs": "xyz"}],
+        "ropes": {"slack": 0.1, "EA": 1.0e5, "strain_limit": 0.02},
+        "gravity": {"g": [0.0, 0.0, -9.81]},
+        "analysis": {"type": "mra", "start_shape": {"type": "nurbs", "depth": 1.0},
+                     "relaxation": {"scheme": "implicit", "linear_solver": "ldl", "start": "force_density"}},
+    },
+    "truss_displacement": {
+        "title": "von Mises truss, displacement control, branch switching",
+        "nodes": {"coordinates": [[-1.0, 0.0, 0.0], [0.0, 0.0, 0.2], [1.0, 0.0, 0.0], [0.0, 0.5, 0.1]]},
+        "members": [{"name": "bars", "kind": "bar", "connectivity": [[0, 1], [1, 2], [1, 3]], "EA": [1.0e4, 1.0e4,
+                                                                                                    5.0e3]},
+                    {"name": "ties", "kind": "rope", "connectivity": [[0, 3], [2, 3]], "EA": 1.0e3, "slack": 0.01,
+                     "mass_per_length": 0.1}],
+        "supports": [{"nodes": [0, 2]}, {"nodes": [3], "dofs": "xz"}],
+        "prescribed": [{"nodes": [1], "direction": [0.0, 0.0, -1.0]}],
+        "loads": [{"nodes": 3, "force": [0.0, -1.0, 0.0], "scaled": False}],
+        "analysis": {"type": "continuation", "rtol": 1e-9, "continuation": {
+            "control": "displacement", "parameter_max": 0.5, "on_bifurcation": "switch", "branch_side": -1,
+            "constraint": "cylindrical", "monitor_node": 1, "monitor_component": "z", "max_steps": 40}},
+    },
+    "dome_random": {
+        "geometry": {"type": "file", "file": "../meshes/lattice_dome.obj"},
+        "members": [{"kind": "bar", "EA": 2.0e6, "cells": ["triangle"], "rest_length": 0.5}],
+        "supports": [{"groups": ["boundary"], "dofs": "xyz"}],
+        "loads": [{"nodes": [0], "force": [0.0, 0.0, -100.0]}],
+        "gravity": {"g": [0.0, 0.0, -9.81], "scaled": True},
+        "masses": {"node_mass": 1.0},
+        "imperfection": {"type": "random", "amplitude": 0.001, "seed": 3},
+        "effects": {"include": ["axial", "loads", "gravity"]},
+        "analysis": {"type": "static", "load_factor": 0.5, "merit": "residual", "linear_solver": "auto",
+                     "start": None},
+        "output": {"formats": ["vtu", "xdmf"]},
+    },
+    "chain_ramp": {
+        "nodes": {"coordinates": [[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.0, 0.0], [1.5, 0.0, 0.0]]},
+        "members": [{"kind": "rope", "connectivity": [[0, 1], [1, 2], [2, 3]], "EA": 1.0e3, "slack": 0.1,
+                     "mass_per_length": 1.0}],
+        "supports": [{"nodes": [0, 3]}],
+        "loads": [{"nodes": [1, 2], "force": [0.0, 0.0, -5.0]}],
+        "imperfection": {"type": "forces", "amplitude": 0.01, "seed": 1},
+        "analysis": {"type": "dynamics", "dynamics": {"time_step": 0.02, "duration": 0.5, "ramp_time": 0.2,
+                                                      "damping": 1.0, "monitor_node": 2}},
+    },
+    "hemisphere_shared": {
+        "geometry": {"type": "hemisphere", "n": 3, "radius": 0.05, "voronoi_length": 5.0e-3},
+        "rods": {"joints": "shared", "E": 1.0e9, "radius": 2.0e-3, "density": 500.0},
+        "analysis": {"type": "indentation", "indentation": {"mode": "II", "max_displacement": 0.5,
+                                                            "snap_method": "energy", "increment": 0.02}},
+    },
+    "found_form_buckling": {
+        "geometry": {"type": "rectangle", "length_x": 4.0, "length_y": 4.0, "n_i": 4, "n_j": 4},
+        "supports": [{"groups": ["boundary"]}],
+        "ropes": {"slack": 0.1, "mass_per_length": 5.0},
+        "rods": {"rest_shape": "found", "E": 7.0e10, "radius": 0.02},
+        "analysis": {"type": "form_and_buckle", "buckling": {"load_factor_max": 500.0, "max_steps": 20,
+                                                             "initial_increment": 5.0}},
+    },
+}
+
+
 def _base_scenes() -> list[dict]:
     out = []
     for path in BASE_FILES:
         data = _shrink_large_grid(tomllib.loads(path.read_text()))
         out.append({"name": f"{path.parent.name}/{path.name}", "data": data, "base_dir": str(path.parent),
                     "text": path.read_text()})
+    for name, data in EXTRA_BASES.items():
+        data = {k: v for k, v in data.items() if v is not None}
+        data.get("analysis", {}).pop("start", None)
+        out.append({"name": name, "data": data, "base_dir": str(ROOT / "scenes"), "text": _toml(data)})
     return out
+
+
+def _toml(data: dict, prefix: str = "") -> str:
+    """A scene as TOML text (the subset the extra scenes use: tables, arrays of tables, numbers, strings)."""
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        return repr(v)
+
+    lines, tables = [], []
+    for k, v in data.items():
+        if isinstance(v, dict):
+            tables.append((k, v, False))
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            tables.append((k, v, True))
+        else:
+            lines.append(f"{k} = {value(v)}")
+    text = "\n".join(lines) + "\n"
+    for k, v, many in tables:
+        name = f"{prefix}{k}"
+        for item in (v if many else [v]):
+            text += f"\n[[{name}]]\n" if many else f"\n[{name}]\n"
+            text += _toml(item, name + ".")
+    return text
 
 
 BASES = _base_scenes()
@@ -173,13 +284,17 @@ weird = st.one_of(
     st.lists(st.one_of(st.sampled_from(SPECIAL_NUMBERS), st.booleans(), st.just("0.5")), max_size=5),
     st.lists(st.lists(st.sampled_from(SPECIAL_NUMBERS), min_size=2, max_size=4), max_size=4),
     st.integers(1, 200).map(_nest),  # deeper lists do not pickle to the worker; the byte level nests deeper
-    st.sampled_from([[], {}, [[]], [{}], {"type": "rectangle"}, [[0, 0]] * 100_000, [0.0] * 100_000]),
+    # containers built afresh for each case: a later mutation may change them in place
+    st.sampled_from([list, dict, lambda: [[]], lambda: [{}], lambda: {"type": "rectangle"},
+                     lambda: [[0, 0] for _ in range(100_000)], lambda: [0.0] * 100_000]).map(lambda make: make()),
     junk,
 )
 
 
 def _paths(obj, prefix=()):
-    """Every key and list entry of a parsed scene (long lists: their first and last entries)."""
+    """Every key and list entry of a parsed scene (long lists: their first and last entries; ten levels)."""
+    if len(prefix) >= 10:
+        return
     if isinstance(obj, dict):
         for k, v in obj.items():
             yield prefix + (k,)
@@ -622,11 +737,16 @@ def _print_table() -> None:
         print(f"{len(FINDINGS)} bad cases" + (f" recorded in {RECORD}" if RECORD else ""))
 
 
+#: the same cases every run, unless a seed asks for others
+SEED = os.environ.get("SHELLFORM_FUZZ_SEED")
+
+
 def _fuzz_settings(n: int):
-    return settings(max_examples=n, deadline=None, derandomize=True, database=None,
-                    phases=[Phase.explicit, Phase.generate] if RECORD else [Phase.explicit, Phase.generate,
-                                                                            Phase.shrink],
-                    suppress_health_check=list(HealthCheck))
+    chosen = settings(max_examples=n, deadline=None, derandomize=SEED is None, database=None,
+                      phases=[Phase.explicit, Phase.generate] if RECORD else [Phase.explicit, Phase.generate,
+                                                                              Phase.shrink],
+                      suppress_health_check=list(HealthCheck))
+    return chosen if SEED is None else lambda test: seed(int(SEED))(chosen(test))
 
 
 @_fuzz_settings(30)
