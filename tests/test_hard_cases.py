@@ -21,6 +21,7 @@ from scipy.optimize import brentq
 from shellform import Structure, build_system, solve_static
 from shellform.errors import MechanismError
 from shellform.solvers.continuation import trace_path
+from shellform.solvers.equilibrium import ROUNDOFF_RTOL
 
 ROOT = Path(__file__).resolve().parents[1]
 LOAD = 10.0
@@ -41,31 +42,38 @@ RATIOS = [10.0**k for k in range(0, 16)]
 
 
 def series_case(ratio):
-    """(success, relative error of the tip displacement or None, message)."""
-    res = solve_static(build_system(series_bars(1e4, 1e4 * ratio)))
+    """(result, relative error of the tip displacement, largest residual over the largest force in play)."""
+    system = build_system(series_bars(1e4, 1e4 * ratio))
+    res = solve_static(system)
     exact = LOAD / 1e4 + LOAD / (1e4 * ratio)
     err = abs(res.q[6] - 2.0 - exact) / exact
-    return res, err
+    return res, err, balance(system, res)
+
+
+def balance(system, res) -> float:
+    """Largest free residual entry over the largest force in play at any DOF."""
+    r = system.residual(res.q, res.lam)
+    return float(np.abs(r[system.free]).max() / system.forces_in_play(res.q, res.lam)[system.free].max())
 
 
 @pytest.mark.parametrize("ratio", RATIOS)
 def test_series_bars_converge_exactly_or_fail_honestly(ratio):
-    res, err = series_case(ratio)
+    res, err, rel = series_case(ratio)
     reaction = res.reactions[0]
     if res.success:
         assert err < 1e-7, res.message
-        assert abs(reaction + LOAD) < 1e-6 * LOAD  # the support carries the whole load
-        assert res.residual_norm <= 1e-6 * res.forces_in_play
+        assert abs(reaction + LOAD) < ROUNDOFF_RTOL * LOAD  # the support carries the whole load
+        assert rel <= ROUNDOFF_RTOL
     else:
         assert "rounding level" in res.message and "stiffness contrast" in res.message
-    if ratio <= 1e6:
-        # the stiff bar's force rounds to eps EA |x| / L: within 1e-6 of the load up to EA ~ 2e10
+    if ratio <= 1e8:
+        # the stiff bar's force rounds to eps EA |x| / L: within 1e-4 of the load up to EA ~ 2e12
         assert res.success, res.message
 
 
 def test_old_floor_case_is_no_longer_called_converged():
     """EA 1e4 and 1e16, 10 N at the end: the stiff bar's forces round to about 2 N, so no state
-    balances the load to 1e-6; zero iterations and 'converged' was the old answer."""
+    balances the load to 1e-4; zero iterations and 'converged' was the old answer."""
     res = solve_static(build_system(series_bars(1e4, 1e16)))
     assert not res.success
     assert res.iterations >= 1
@@ -98,10 +106,10 @@ def test_mixed_stiffness_dome_balances_its_load_or_says_why(stiff_factor):
     res = solve_static(build_system(s), lam=1.0)
     if res.success:
         Rz = res.reactions[2::3][: s.n_nodes].sum()
-        assert abs(Rz - 7 * LOAD) < 1e-6 * 7 * LOAD, (Rz, res.message)
+        assert abs(Rz - 7 * LOAD) < ROUNDOFF_RTOL * 7 * LOAD, (Rz, res.message)
     else:
         assert "rounding level" in res.message, res.message
-    if stiff_factor <= 1e3:
+    if stiff_factor <= 1e6:
         assert res.success, res.message
 
 
@@ -224,26 +232,28 @@ def test_mechanism_under_continuation_is_a_clean_error():
 def _table():
     rows = []
     for ratio in RATIOS:
-        res, err = series_case(ratio)
+        res, err, rel = series_case(ratio)
         rows.append((f"series bars, EA ratio {ratio:.0e}", res.success, f"{err:.1e}" if res.success else "-",
-                     f"{res.residual_norm / res.forces_in_play:.1e}", res.message[:90]))
+                     f"{rel:.1e}", res.message[:90]))
     for f in [1.0, 1e3, 1e6, 1e9, 1e12]:
         s = star_dome(f)
-        res = solve_static(build_system(s))
+        system = build_system(s)
+        res = solve_static(system)
         Rz = res.reactions[2::3][: s.n_nodes].sum()
         rows.append((f"star dome, every third bar x{f:.0e}", res.success, f"{abs(Rz - 70) / 70:.1e}",
-                     f"{res.residual_norm / res.forces_in_play:.1e}", res.message[:90]))
+                     f"{balance(system, res):.1e}", res.message[:90]))
     for slack in [0.0, 0.01, 0.1, 0.5]:
-        res = solve_static(build_system(rope_v(slack)))
+        system = build_system(rope_v(slack))
+        res = solve_static(system)
         rows.append((f"rope V, slack {slack}", res.success, f"{abs(-res.q[5] - rope_v_sag(slack)):.1e}",
-                     f"{res.residual_norm / res.forces_in_play:.1e}", res.message[:90]))
+                     f"{balance(system, res):.1e}", res.message[:90]))
     for bound in [40.0, 1e3, 1e5, math.inf]:
         res = trace_path(von_mises(), parameter_bounds=(-math.inf, bound), max_displacement=0.5, max_steps=200)
         lim = res.events_of("limit")
         err = abs(lim[0].parameter - von_mises_limit()) / von_mises_limit() if lim else float("nan")
         rows.append((f"von Mises, parameter_max {bound:g}", res.success and len(lim) == 2, f"{err:.1e}", "-",
                      f"{len(lim)} limit points; {res.message[:60]}"))
-    print("| case | success | error against the exact answer | residual / forces in play | message |")
+    print("| case | success | error against the exact answer | largest residual / largest force in play | message |")
     print("|---|---|---|---|---|")
     for r in rows:
         print("| " + " | ".join(str(x) for x in r) + " |")

@@ -121,10 +121,9 @@ def test_axially_stiff_cantilever_in_three_load_steps(axial_ratio):
 
 
 def test_compressed_grid_keeps_the_straight_search_where_it_is_better():
-    """Rods pushed into a dome with joints 1e7 times stiffer than the edges: projecting every
+    """Rods pushed into a dome with joints 1e8 times stiffer than the edges: projecting every
     trial (lengths held to the linearisation of compressed, buckling rods) halved the load
-    steps twice as often; keeping the better trial gives the straight search's steps.
-    (At 1e8 the joints' forces round to 7e-4 of the forces in play: see the next test.)"""
+    steps twice as often; keeping the better trial gives the straight search's steps."""
     import sys
     from pathlib import Path
 
@@ -133,25 +132,10 @@ def test_compressed_grid_keeps_the_straight_search_where_it_is_better():
 
     runs = []
     for project in (False, True):
-        s, net, system, idx, pairs = arched_grid(False, 1e7)
+        s, net, system, idx, pairs = arched_grid(False, 1e8)
         runs.append(solve_incremental(system, mu=1.0, n_steps=10, project=project))
     straight, projected = runs
     assert straight.success and projected.success
     assert projected.n_steps <= straight.n_steps, (projected.iterations, straight.iterations)
     n = 3 * s.n_nodes
     assert np.abs(projected.q[:n] - straight.q[:n]).max() < 1e-7
-
-
-def test_joints_too_stiff_for_double_precision_fail_honestly():
-    """Joints 1e8 times stiffer than the edges round their forces to about 0.5 N against
-    190 N in play: no state balances to 1e-6, and the solve says so instead of converging."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parents[1] / "validation" / "rods"))
-    from penalty_study import arched_grid
-
-    s, net, system, idx, pairs = arched_grid(False, 1e8)
-    res = solve_incremental(system, mu=1.0, n_steps=10)
-    assert not res.success
-    assert "rounding level" in res.message and "stiffness contrast" in res.message

@@ -51,7 +51,7 @@ import scipy.sparse.linalg as spla
 from ..errors import MechanismError, ModelError
 from .linear import LDLFactor, LUFactor, SingularMatrixError
 from .mechanism import describe_soft_modes
-from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck, roundoff_level
+from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck, forces_in_play, roundoff_level
 from .newton import solve_static
 from .stability import InertiaError, critical_modes, inertia
 from .step_bounds import FOLD_OVERSHOOT, fold_distance, linearised_critical_increment
@@ -261,7 +261,14 @@ class ContinuationResult:
 
 
 class _StepFailure(Exception):
-    """A corrector did not converge (internal; triggers a cut-back)."""
+    """A corrector did not converge (internal; triggers a cut-back).
+
+    ``singular``: the failure came from a tangent that could not be solved with.
+    """
+
+    def __init__(self, message: str, singular: bool = False):
+        super().__init__(message)
+        self.singular = singular
 
 
 # ---------------------------------------------------------------------------
@@ -654,7 +661,7 @@ class _Tracer:
                 try:
                     x, y = self.pb.bordered_solve(K, g, 2.0 * du, 2.0 * self.c2 * dp, -R, -cval, F)
                 except SingularMatrixError as exc:
-                    raise _StepFailure(f"singular bordered system: {exc}") from None
+                    raise _StepFailure(f"singular bordered system: {exc}", singular=True) from None
                 du, dp = du + x, dp + y
             if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
                 raise _StepFailure(f"non-finite correction at iteration {it + 1}")
@@ -670,14 +677,17 @@ class _Tracer:
         """
         o = self.o
         if self.play is None:
-            lam = self.pb.lam_mu(self.p)[0]
-            self.play = float(np.linalg.norm(self.system.forces_in_play(self.q, lam)[self.free]))
-        applied = self.pb.external_norm(p)
-        scale = max(applied, float(np.linalg.norm(r[self.system.constrained])), self.play)
+            self.play = forces_in_play(self.system, self.q, self.pb.lam_mu(self.p)[0])
+        ext = self.pb.f_dead + self.pb.lam_mu(p)[0] * self.pb.f_ref
+        reactions = r[self.system.constrained]
+        applied = float(np.linalg.norm(ext))
+        scale = max(applied, float(np.linalg.norm(reactions)), self.play[0])
+        scale_max = max(float(np.max(np.abs(ext), initial=0.0)), float(np.max(np.abs(reactions), initial=0.0)),
+                        self.play[1])
         if scale == 0.0:
-            scale = unloaded_scale
+            scale = scale_max = unloaded_scale
         return EquilibriumCheck(norm, scale, o["rtol"] * scale + o["atol"], self.round_floor, o["roundoff_rtol"],
-                                applied)
+                                applied, float(np.max(np.abs(r[self.free]), initial=0.0)), scale_max)
 
     # -- recording ---------------------------------------------------------------------------
     def record(self, q, r, p, iterations, ds, n_neg):
@@ -811,7 +821,7 @@ class _Tracer:
         o = self.o
         ds = min(self.ds, self.ds_max)
         jump_cuts, jump_seen = 0, None
-        last_msg = ""
+        last_msg, singular = "", False
         while True:
             try:
                 out = self.attempt(ds)
@@ -831,11 +841,13 @@ class _Tracer:
                 return ds, out
             except (_StepFailure, SingularMatrixError) as exc:
                 last_msg = str(exc)
+                singular = isinstance(exc, SingularMatrixError) or exc.singular
                 self.rejected += 1
                 ds *= 0.5
                 self.cut_back = True
                 if ds < self.ds_min:
-                    soft = describe_soft_modes(self.system, self.pb.jacobian(self.u, self.p, self.q)[0])
+                    # a singular tangent is named by the motions it cannot resist
+                    soft = describe_soft_modes(self.system, self.pb.jacobian(self.u, self.p, self.q)[0]) if singular else ""
                     raise _StepFailure(
                         f"step {self.step + 1}: arc length cut below ds_min = {self.ds_min:.3e} "
                         f"at parameter {self.p:.6g}; last failure: {last_msg}{'; ' + soft if soft else ''}"

@@ -37,7 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ModelError
-from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck, roundoff_level
+from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck, forces_in_play, roundoff_level
 from .linear import SingularMatrixError, factorize
 
 
@@ -154,14 +154,19 @@ class _Stepper:
 
         # forces in play: loads, the inertia of the motion, and the member forces at the
         # step's start (the scale changes little within a step, and is computed once)
-        applied = float(np.linalg.norm(sysm.external_force(lam)))
-        in_play = max(applied, float(np.linalg.norm(Mf * v_k[free])) / h,
-                      float(np.linalg.norm(sysm.forces_in_play(q_k, lam)[free])))
+        ext = sysm.external_force(lam)
+        inertia = Mf * v_k[free] / h
+        play = forces_in_play(sysm, q_k, lam)
+        in_play = max(float(np.linalg.norm(ext)), float(np.linalg.norm(inertia)), play[0])
+        in_play_max = max(float(np.max(np.abs(ext), initial=0.0)), float(np.max(np.abs(inertia), initial=0.0)), play[1])
 
-        def test(r, norm, J):
-            scale = max(in_play, float(np.linalg.norm(r[sysm.constrained])))
-            return EquilibriumCheck(norm, scale, self.rtol * scale + self.atol,
-                                    roundoff_level(J.diagonal(), q), self.roundoff_rtol, applied)
+        def test(r, R, J):
+            reactions = r[sysm.constrained]
+            scale = max(in_play, float(np.linalg.norm(reactions)))
+            scale_max = max(in_play_max, float(np.max(np.abs(reactions), initial=0.0)))
+            return EquilibriumCheck(float(np.linalg.norm(R)), scale, self.rtol * scale + self.atol,
+                                    roundoff_level(J.diagonal(), q), self.roundoff_rtol, float(np.linalg.norm(ext)),
+                                    float(np.max(np.abs(R), initial=0.0)), scale_max)
 
         def stalled(eq, it):
             if eq.acceptable_at_roundoff:
@@ -174,7 +179,7 @@ class _Stepper:
         for it in range(1, self.max_iter + 1):
             K = sysm.tangent_free(q)
             J = K + sp.diags(jac_diag)
-            eq = test(r, norm, J)
+            eq = test(r, R, J)
             if eq.converged:
                 return q, r, it - 1
             if eq.near_roundoff and it > 1 and norm > 0.1 * previous:
@@ -216,7 +221,7 @@ class _Stepper:
                 return None, f"Newton iteration {it}: no step decreased the incremental potential", it
             previous = norm
             q, r, R, norm = q_try, r_try, R_try, n_try
-        eq = test(r, norm, sysm.tangent_free(q) + sp.diags(jac_diag))
+        eq = test(r, R, sysm.tangent_free(q) + sp.diags(jac_diag))
         if eq.converged:
             return q, r, self.max_iter
         if eq.near_roundoff:

@@ -224,7 +224,7 @@ def solve_static(
         if not accepted:
             why = "the tangent is singular even with a large diagonal shift" if singular else (
                 f"no step decreased the {merit} merit, even with a large diagonal shift")
-            soft = describe_soft_modes(system, K) or "the structure may be a mechanism at this state"
+            soft = (describe_soft_modes(system, K) if singular else "") or "the structure may be a mechanism at this state"
             return result(False, f"iteration {it}: {why} ({eq.describe()}); {soft}", it - 1)
         q, r, norm = q_try, r_try, norm_try
         norms.append(norm)
