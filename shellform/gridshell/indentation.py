@@ -50,7 +50,7 @@ from ..errors import ModelError
 from ..solvers.continuation import trace_path
 from ..solvers.linear import LDLFactor, SingularMatrixError
 from ..solvers.newton import solve_static
-from ..solvers.stability import InertiaError, critical_modes, inertia
+from ..solvers.stability import InertiaError, critical_modes, inertia, start_vector
 from .hemisphere import HemisphereModel, PrestressResult
 
 MODES = ("I", "II")
@@ -315,7 +315,7 @@ def _eigsh_about(K, sigma: float):
     A = K if sigma == 0.0 else (K - sigma * sp.identity(n, format="csr")).tocsr()
     F = LDLFactor(A)
     op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b)), dtype=float)
-    w, V = spla.eigsh(K, k=1, sigma=sigma, which="LM", OPinv=op, tol=1e-9)
+    w, V = spla.eigsh(K, k=1, sigma=sigma, which="LM", OPinv=op, tol=1e-9, v0=start_vector(n))
     return float(w[0]), V[:, 0], F
 
 

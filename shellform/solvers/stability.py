@@ -35,6 +35,13 @@ from .linear import LDLFactor, SingularMatrixError
 DENSE_LIMIT = 400
 
 
+def start_vector(n: int) -> np.ndarray:
+    """The start vector of every Lanczos run: fixed, so that a model gives the same answer run after run
+    (ARPACK's own is random), and pseudo-random, so that it is not orthogonal to a symmetric
+    structure's antisymmetric modes (a vector of ones would be)."""
+    return np.random.default_rng(20261202).standard_normal(n)
+
+
 class InertiaError(RuntimeError):
     """The inertia of a matrix could not be determined reliably."""
 
@@ -104,7 +111,8 @@ def _shift_invert_eigsh(A, k: int, sigma: float, vectors: bool):
     n = A.shape[0]
     F = LDLFactor(sp.csr_matrix(A - sigma * sp.identity(n, format="csr")))
     op = spla.LinearOperator((n, n), matvec=lambda v: F.solve(np.asarray(v).ravel()), dtype=float)
-    return spla.eigsh(sp.csr_matrix(A), k=k, sigma=sigma, which="LM", OPinv=op, return_eigenvectors=vectors)
+    return spla.eigsh(sp.csr_matrix(A), k=k, sigma=sigma, which="LM", OPinv=op, return_eigenvectors=vectors,
+                      v0=start_vector(A.shape[0]))
 
 
 def _eigs_near_zero(A, k: int, scale: float) -> np.ndarray:
