@@ -249,7 +249,7 @@ def _check_bar_rope(scene: dict, base_dir) -> None:
             raise SceneError(f"members[{i}].cells", "give connectivity or cells, not both")
     for i, sup in enumerate(scene["supports"]):
         for key in ("positions", "frames"):
-            if sup[key]:
+            if sup[key] is not None and len(sup[key]):
                 raise SceneError(_where(scene, i, key), "applies to planform grids (form finding)")
         if scene["source"] == "nodes" and sup["groups"]:
             raise SceneError(_where(scene, i, "groups"), "named node sets come from a planform grid or a mesh file; "
@@ -402,6 +402,10 @@ def _check_hemisphere(scene: dict) -> None:
     if dl > spacing:
         raise SceneError("geometry.voronoi_length", f"got {dl!r}; expected at most the joint spacing pi R / (n + 1) "
                          f"= {spacing:.4g} m")
+    rods = scene["rods"] or {}
+    if rods.get("radius") is not None and 2.0 * rods["radius"] >= spacing:
+        raise SceneError("rods.radius", f"got {rods['radius']!r}; expected less than half the joint spacing "
+                         f"pi R / (n + 1) = {spacing:.4g} m (thicker rods would overlap their neighbours)")
     nodes = 2 * n * np.pi * radius / dl  # each of the 2 n rods is at most half a great circle long
     if nodes > MAX_NODES:
         raise SceneError("geometry.voronoi_length", f"got {dl!r}: the rods would have about {nodes:,.0f} nodes; at "

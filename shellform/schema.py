@@ -179,7 +179,8 @@ def _numbers(path, value, shape_doc, ndim, key: Key, integer=False, width=None) 
             if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
                 raise SceneError(_at(path, index), f"got {short(v)}; expected {want} ({shape_doc})")
             if isinstance(v, float) and not np.isfinite(v):
-                raise SceneError(_at(path, index), "value is not finite" + where(index))
+                raise SceneError(_at(path, index), f"got {v!r}: the value is not finite; expected {want}"
+                                 + where(index))
             _check_range(_at(path, index), v, key)
             if abs(v) > bound:
                 raise SceneError(_at(path, index), f"got {short(v)}; expected {want} of magnitude <= "

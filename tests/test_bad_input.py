@@ -190,10 +190,13 @@ def test_continuation_bounds_are_named_not_left_to_the_solver(continuation, key,
 @pytest.mark.parametrize("geometry, key, words", [
     ({"n": 5, "voronoi_length": 0.5}, "geometry.voronoi_length", "joint spacing"),
     ({"n": 9999, "voronoi_length": 1e-6}, "geometry.voronoi_length", "at most 2,000,000"),
+    ({"n": 3, "radius": 0.05, "voronoi_length": 5e-3, "rods": {"radius": 400.0}}, "rods.radius",
+     "half the joint spacing"),
 ])
 def test_hemisphere_sizes_are_named_before_building(geometry, key, words):
+    rods = geometry.pop("rods", None)
     with pytest.raises(SceneError) as info:
-        parse_scene({"geometry": {"type": "hemisphere", **geometry}})
+        parse_scene({"geometry": {"type": "hemisphere", **geometry}, **({"rods": rods} if rods else {})})
     assert info.value.key == key and words in info.value.problem
 
 

@@ -23,7 +23,7 @@ worker died), ``hang`` (the time limit), ``nan`` (a non-finite number in the sum
 except the known ones listed in :data:`KNOWN` (each reproduced by an ``xfail`` test below).
 
     python -m pytest tests/test_fuzz_scenes.py                        # the fast sample
-    python -m pytest -m slow tests/test_fuzz_scenes.py -s             # 2,400 cases, a table of outcomes
+    python -m pytest -m slow tests/test_fuzz_scenes.py -s             # 2,600 cases, a table of outcomes
     SHELLFORM_FUZZ_REPORT=fuzz.json python -m pytest -m slow tests/test_fuzz_scenes.py -s
         # the same, recording every bad case (scene and traceback) in fuzz.json instead of stopping
     SHELLFORM_FUZZ_CASES=300 ...                                      # a shorter slow run
@@ -564,7 +564,8 @@ def run_case(case: dict, folder: Path) -> dict:
         return {"class": "traceback", "type": type(exc).__name__, "detail": str(exc)[:300],
                 "where": _innermost(exc.__traceback__), "traceback": traceback.format_exc()[-4000:]}
     if not (_finite(summary) and _finite(written)):
-        return {"class": "nan", "detail": "non-finite number in the summary"}
+        keys = [k for k, v in summary.items() if not _finite(v)]
+        return {"class": "nan", "detail": f"non-finite numbers in the summary: {', '.join(keys)}"}
     return {"class": "success" if summary.get("converged") else "failure"}
 
 
