@@ -1,0 +1,192 @@
+"""The corrector: Newton on the equilibrium equations plus the arc-length constraint (Crisfield).
+
+At the current increment ``(du, dp)`` with residual ``R``, solve ``K a = -R`` and
+``K b = -g``; the new increment is ``(w + delta b, dp + delta)`` with
+``w = du + a`` and ``delta`` the root of the constraint closest to the current
+increment. Next to a critical point, or where ``K`` cannot be factorised, a
+bordered Newton step with the linearised constraint is taken instead. The
+functions take the tracer (:class:`~shellform.solvers.continuation.tracer.Tracer`)
+whose metric, problem and counters they use.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equilibrium import EquilibriumCheck, forces_in_play
+from ..linear import SingularMatrixError
+from .problem import StepFailure
+
+
+@dataclass
+class StepPoint:
+    """A converged point at the end of a step, with its linearisation.
+
+    Attributes
+    ----------
+    u, p : ndarray, float
+        Free DOFs and parameter.
+    q, r : ndarray
+        Full state and residual.
+    iterations : int
+        Corrector iterations.
+    du, dp : ndarray, float
+        The step's increment.
+    t_du, t_dp : ndarray, float
+        Unit path tangent at the point, in the direction of travel.
+    n_neg : int
+        Negative eigenvalues of the tangent (-1 when not counted).
+    """
+
+    u: np.ndarray
+    p: float
+    q: np.ndarray
+    r: np.ndarray
+    iterations: int
+    du: np.ndarray
+    dp: float
+    t_du: np.ndarray
+    t_dp: float
+    n_neg: int
+
+
+def correct(tr, u0, p0, du, dp, ds):
+    """Newton on ``G = 0`` plus the arc-length constraint from the predictor ``(du, dp)``."""
+    o = tr.o
+    max_iter = o.max_iterations
+    complex_roots = 0
+    norm0 = previous = None
+    for it in range(max_iter + 1):
+        u, p = u0 + du, p0 + dp
+        R, r, q = tr.pb.residual(u, p)
+        nR = float(np.linalg.norm(R))
+        if not np.isfinite(nR):
+            raise StepFailure(f"non-finite residual at corrector iteration {it}")
+        eq = equilibrium(tr, nR, r, p, nR if norm0 is None else norm0)
+        if eq.converged:
+            return u, p, q, r, it
+        # stalled near the rounding level: no iteration can do better
+        if eq.near_roundoff and (it == max_iter or (previous is not None and nR > 0.1 * previous)):
+            if eq.acceptable_at_roundoff:
+                return u, p, q, r, it
+            raise StepFailure(eq.roundoff_failure())
+        previous = nR
+        if norm0 is None:
+            norm0 = max(nR, 1e-300)
+        elif nR > 1e8 * norm0:
+            raise StepFailure(f"corrector diverged (|G| grew from {norm0:.3e} to {nR:.3e})")
+        if it == max_iter:
+            break
+        tr.newton_total += 1
+        K, g = tr.pb.jacobian(u, p, q)
+        F = tr.pb.factor(K)
+        a = b = None
+        if F is not None:
+            try:
+                a = tr.pb.solve(F, -R)
+                b = tr.pb.solve(F, -g)
+            except SingularMatrixError:
+                a = b = None
+        if a is not None and float(np.linalg.norm(b)) * tr.kbar > 1e6 * max(float(np.linalg.norm(g)), 1e-300):
+            # nearly singular tangent (at a critical point): the two solves are huge and
+            # their combination cancels, so use the bordered system instead
+            a = b = None
+        if a is not None:
+            w = du + a
+            A = float(b @ b) + tr.c2
+            B = 2.0 * (float(w @ b) + tr.c2 * dp)
+            C = float(w @ w) + tr.c2 * dp * dp - ds * ds
+            disc = B * B - 4.0 * A * C
+            if disc >= 0.0 and A > 0.0:
+                sq = math.sqrt(disc)
+                # numerically stable pair of roots
+                qq = -0.5 * (B + math.copysign(sq, B))
+                roots = [qq / A, C / qq] if qq != 0.0 else [0.0, 0.0]
+                best = None
+                for rt in roots:
+                    du_n, dp_n = w + rt * b, dp + rt
+                    score = tr.dot(du_n, dp_n, du, dp)
+                    if best is None or score > best[0]:
+                        best = (score, du_n, dp_n)
+                du, dp = best[1], best[2]
+            else:
+                # no real root: step to the point of the line nearest the sphere
+                complex_roots += 1
+                if complex_roots > 3:
+                    raise StepFailure("arc-length constraint has no real root (step too long for the curvature)")
+                rt = -B / (2.0 * A) if A > 0 else 0.0
+                du, dp = w + rt * b, dp + rt
+        else:
+            # singular tangent: bordered Newton step with the linearised constraint
+            cval = tr.dot(du, dp, du, dp) - ds * ds
+            try:
+                x, y = tr.pb.bordered_solve(K, g, 2.0 * du, 2.0 * tr.c2 * dp, -R, -cval, F)
+            except SingularMatrixError as exc:
+                raise StepFailure(f"singular bordered system: {exc}", singular=True) from None
+            du, dp = du + x, dp + y
+        if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
+            raise StepFailure(f"non-finite correction at iteration {it + 1}")
+    raise StepFailure(f"corrector did not converge in {max_iter} iterations ({eq.describe()})")
+
+
+def equilibrium(tr, norm: float, r: np.ndarray, p: float, unloaded_scale: float) -> EquilibriumCheck:
+    """The equilibrium test of a corrector iterate (residual norm ``norm``, full residual ``r``).
+
+    The forces in play are those of the last accepted point, the applied
+    loads and the reactions at this iterate; where all are zero (nothing
+    loaded yet, displacement control at ``mu = 0``) the residual is judged
+    against ``unloaded_scale``, the predictor's imbalance.
+    """
+    o = tr.o
+    if tr.play is None:
+        tr.play = forces_in_play(tr.system, tr.q, tr.pb.lam_mu(tr.p)[0])
+    ext = tr.pb.f_dead + tr.pb.lam_mu(p)[0] * tr.pb.f_ref
+    reactions = r[tr.system.constrained]
+    applied = float(np.linalg.norm(ext))
+    scale = max(applied, float(np.linalg.norm(reactions)), tr.play[0])
+    scale_max = max(float(np.max(np.abs(ext), initial=0.0)), float(np.max(np.abs(reactions), initial=0.0)),
+                    tr.play[1])
+    if scale == 0.0:
+        scale = scale_max = unloaded_scale
+    return EquilibriumCheck(norm, scale, o.rtol * scale + o.atol, tr.round_floor, o.roundoff_rtol,
+                            applied, float(np.max(np.abs(r[tr.free]), initial=0.0)), scale_max)
+
+
+def land(tr, u, p, lo_b, hi_b) -> StepPoint | None:
+    """The point of the last step exactly at the parameter bound it crossed (None if Newton fails)."""
+    pb = hi_b if p > hi_b else lo_b
+    w = (pb - tr.p) / (p - tr.p) if p != tr.p else 1.0
+    if not 0.0 <= w <= 1.0:
+        return None
+    u = tr.u + w * (u - tr.u)
+    previous = None
+    for it in range(tr.o.max_iterations + 1):
+        R, r, q = tr.pb.residual(u, pb)
+        nR = float(np.linalg.norm(R))
+        if not np.isfinite(nR):
+            return None
+        eq = equilibrium(tr, nR, r, pb, nR if previous is None else previous)
+        stalled = eq.near_roundoff and previous is not None and nR > 0.1 * previous
+        if stalled and not eq.acceptable_at_roundoff:
+            return None
+        previous = nR
+        if eq.converged or stalled:
+            du, dp = u - tr.u, pb - tr.p
+            try:
+                t_du, t_dp, n_neg, _ = tr.analyse_point(u, pb, du, dp, q)
+            except SingularMatrixError:
+                return None
+            return StepPoint(u, pb, q, r, it, du, dp, t_du, t_dp, n_neg)
+        K, _ = tr.pb.jacobian(u, pb, q)
+        F = tr.pb.factor(K)
+        if F is None:
+            return None
+        try:
+            u = u + tr.pb.solve(F, -R)
+        except SingularMatrixError:
+            return None
+        tr.newton_total += 1
+    return None

@@ -1,0 +1,505 @@
+"""The tracer: the state of a path being traced and the loop that extends it.
+
+Each step predicts along the path tangent ``t = (du/dp, 1)``, oriented so that it
+keeps the direction of travel, corrects onto the path
+(:mod:`~shellform.solvers.continuation.corrector`), counts the negative
+eigenvalues of the tangent and, where the step changed the sign of ``dp/ds`` or
+that count, locates the critical point inside it
+(:mod:`~shellform.solvers.continuation.events`). Step lengths adapt to the
+corrector's iterations and are bounded by what the structure can do
+(:mod:`shellform.solvers.step_bounds`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ...errors import MechanismError, ModelError
+from ..linear import LDLFactor, SingularMatrixError
+from ..equilibrium import roundoff_level
+from ..mechanism import describe_soft_modes
+from ..newton import solve_static
+from ..stability import InertiaError, inertia
+from ..step_bounds import FOLD_OVERSHOOT, fold_distance, linearised_critical_increment
+from .branches import switch_at
+from .corrector import StepPoint, correct, land
+from .events import locate
+from .options import CONTROLS, ContinuationOptions
+from .problem import Problem, StepFailure, Timer
+from .results import TABLE_COLUMNS, ContinuationResult, PathEvent, PathPoint
+from .snapshot import save
+
+
+class Tracer:
+    """The state of one path being traced, and the loop that extends it step by step.
+
+    Parameters
+    ----------
+    system : System
+    control : {"load", "displacement"}
+    options : ContinuationOptions
+    """
+
+    def __init__(self, system, control: str, options: ContinuationOptions):
+        if control not in CONTROLS:
+            raise ValueError(f"control must be one of {CONTROLS}, got {control!r}")
+        o = options
+        self.system = system
+        self.control = control
+        self.o = o
+        self.timer = Timer()
+        self.t_created = time.perf_counter()
+        self.pb = Problem(system, control, o.fixed_lam, o.fixed_mu, self.timer, o.linear_solver)
+        self.free = system.free
+        self.monitors = dict(o.monitors or {})
+        for name, spec in self.monitors.items():
+            if not callable(spec):
+                i = int(spec)
+                if not 0 <= i < system.n_dof:
+                    raise ModelError(f"monitor {name!r}: DOF index {i} out of range 0..{system.n_dof - 1}")
+        # displacement measure
+        if control == "displacement":
+            self.disp_dof = None
+        else:
+            dof = o.displacement_dof
+            if dof is None:
+                dof = int(np.argmax(np.abs(self.pb.f_ref)))
+            self.disp_dof = int(dof)
+            s = np.sign(self.pb.f_ref[self.disp_dof])
+            self.disp_sign = float(s) if s != 0 else 1.0
+        self.table = {c: [] for c in TABLE_COLUMNS}
+        for name in self.monitors:
+            if name in self.table:
+                raise ModelError(f"monitor name {name!r} clashes with a path table column")
+            self.table[name] = []
+        self.states: list[np.ndarray] = []
+        self.state_steps: list[int] = []
+        self.events: list[PathEvent] = []
+        self.rejected = 0
+        self.newton_total = 0
+        self.switches = 0
+        self.finished = None  # (status, message, success) once a run has ended
+        self.play = None  # forces in play at the last accepted point, computed when first needed
+
+    # -- metric -----------------------------------------------------------------------
+    def dot(self, du1, dp1, du2, dp2):
+        return float(du1 @ du2) + self.c2 * dp1 * dp2
+
+    def norm(self, du, dp):
+        return math.sqrt(max(self.dot(du, dp, du, dp), 0.0))
+
+    # -- measures -------------------------------------------------------------------------
+    def location(self, q, r, p, arc_length) -> dict:
+        """The :class:`PathLocation` fields of state ``q`` (residual ``r``) at parameter ``p``."""
+        lam, mu = self.pb.lam_mu(p)
+        return dict(
+            arc_length=arc_length, lam=lam, mu=mu, parameter=float(p),
+            load=self.pb.load_measure(r, p), displacement=self.displacement_measure(q, p),
+        )
+
+    def displacement_measure(self, q, p):
+        if self.control == "displacement":
+            return float(p)
+        i = self.disp_dof
+        return self.disp_sign * float(q[i] - self.system.q_ref[i])
+
+    def monitor_values(self, q, p):
+        lam, mu = self.pb.lam_mu(p)
+        out = {}
+        for name, spec in self.monitors.items():
+            if callable(spec):
+                out[name] = float(spec(q, lam, mu))
+            else:
+                i = int(spec)
+                out[name] = float(q[i] - self.system.q_ref[i])
+        return out
+
+    # -- linearisation at a converged point ------------------------------------------------
+    def analyse_point(self, u, p, ref_du, ref_dp, q=None):
+        """Tangent (oriented along ``ref``) and inertia at a converged point."""
+        K, g = self.pb.jacobian(u, p, q)
+        F = self.pb.factor(K)
+        t_du, t_dp = self.tangent_from(K, g, F, ref_du, ref_dp)
+        n_neg = self.count(K, F)
+        return t_du, t_dp, n_neg, K
+
+    def tangent_from(self, K, g, F, ref_du, ref_dp):
+        du = None
+        if F is not None:
+            try:
+                du = self.pb.solve(F, -g)
+                dp = 1.0
+            except SingularMatrixError:
+                du = None
+        if du is None:
+            if ref_du is None:
+                raise SingularMatrixError("the tangent is singular at the starting point and there is no direction of travel")
+            du, dp = self.pb.bordered_solve(K, g, ref_du, self.c2 * ref_dp, np.zeros(K.shape[0]), 1.0, F)
+        nrm = self.norm(du, dp)
+        if not np.isfinite(nrm) or nrm == 0.0:
+            raise SingularMatrixError("the path tangent has zero length in the arc-length metric")
+        du, dp = du / nrm, dp / nrm
+        if ref_du is not None and self.dot(du, dp, ref_du, ref_dp) < 0.0:
+            du, dp = -du, -dp
+        return du, dp
+
+    def count(self, K, F=None, signed=False):
+        """Negative eigenvalues of ``K``: beyond the zero tolerance, or (``signed``) of any size.
+
+        Along the path a tiny eigenvalue counts as zero so that rounding noise
+        next to a critical point is not reported as an event; the bisection
+        that locates an event uses the sign of even the tiniest eigenvalue.
+        """
+        if not self.o.stability:
+            return -1
+        t0 = time.perf_counter()
+        try:
+            fac = F if isinstance(F, LDLFactor) else None
+            I = inertia(K, factor=fac)
+            return I.n_below_zero if signed else I.n_negative
+        except InertiaError:
+            return -1
+        finally:
+            self.timer.add("stability", t0)
+
+    # -- recording ---------------------------------------------------------------------------
+    def record(self, q, r, p, iterations, ds, n_neg):
+        mon = self.monitor_values(q, p)
+        point = PathPoint(
+            **self.location(q, r, p, self.s), step=self.step, branch=self.branch,
+            n_negative=int(n_neg), iterations=int(iterations), ds=float(ds), q=q, monitors=mon,
+        )
+        for c in TABLE_COLUMNS:
+            self.table[c].append(getattr(point, c))
+        for k, v in mon.items():
+            self.table[k].append(v)
+        if self.o.store_states:
+            self.states.append(q.copy())
+            self.state_steps.append(self.step)
+        return point
+
+    # -- start -----------------------------------------------------------------------------
+    def start(self, q0, p0, direction):
+        o = self.o
+        lam, mu = self.pb.lam_mu(p0)
+        st = solve_static(self.system, q0, lam=lam, mu=mu, rtol=o.rtol, roundoff_rtol=o.roundoff_rtol, max_iter=50)
+        q = st.q
+        u = q[self.free].copy()
+        K, g = self.pb.jacobian(u, p0, q)
+        diag = np.abs(K.diagonal())
+        # residuals cannot be computed more accurately than the rounding of the
+        # member forces: stiffness times the rounding of the coordinates
+        self.round_floor = roundoff_level(diag, q)
+        if not st.success:
+            raise ModelError(f"no equilibrium at the starting parameter {p0}: {st.message}")
+        # stiffness scale for the arc-length metric: the larger of the reference and
+        # the starting state, so that a start next to a critical point does not distort it
+        d_ref = np.abs(self.pb.jacobian(self.system.q_ref[self.free], p0)[0].diagonal())
+        kbar = [float(np.mean(d[d > 0])) for d in (diag, d_ref) if np.any(d > 0)]
+        self.kbar = max(kbar) if kbar else 1.0
+        F = self.pb.factor(K)
+        b = None
+        if F is not None:
+            try:
+                b = self.pb.solve(F, -g)
+            except SingularMatrixError:
+                b = None
+        if b is None:
+            soft = describe_soft_modes(self.system, K)
+            raise MechanismError(
+                f"the tangent is singular at the starting point: {soft}" if soft else
+                "the tangent is singular at the starting point; start from a regular state "
+                "(or use switch_branch from a located event)"
+            )
+        nb = float(np.linalg.norm(b))
+        if o.constraint == "cylindrical":
+            if nb == 0.0:
+                raise ModelError("cylindrical arc length: the parameter does not move any free DOF")
+            c = 0.0
+        elif o.parameter_scale is not None:
+            c = float(o.parameter_scale)
+        else:
+            # du/dp of a typical stiffness rather than |K^-1 g|: defined and moderate
+            # even when the start is close to a critical point
+            ng = float(np.linalg.norm(g))
+            c = o.psi * (ng / self.kbar if ng > 0 else 1.0)
+        self.c2 = c * c
+        # no step may be longer than the linearised distance to the nearest critical point
+        crit = self.critical_increment(u, p0, K, F, b, direction, q)
+        ds_crit = crit * math.sqrt(nb * nb + self.c2) if crit is not None else math.inf
+        # first step: parameter increment sets the arc length unless ds is given
+        if o.ds is not None:
+            ds = float(o.ds)
+        else:
+            dp0 = o.initial_increment
+            if dp0 is None:
+                lo, hi = o.parameter_bounds
+                span = hi - p0 if direction >= 0 else p0 - lo
+                if span <= 0 or not (np.isfinite(span) or crit is not None):
+                    raise ModelError(
+                        "continuation needs a step size: give ds, initial_increment or a finite parameter bound"
+                    )
+                dp0 = min(span / 20.0, crit / 4.0 if crit is not None else math.inf)
+            ds = abs(float(dp0)) * math.sqrt(nb * nb + self.c2)
+        if not (np.isfinite(ds) and ds > 0):
+            raise ModelError(f"initial arc length must be positive and finite, got {ds}")
+        self.ds = ds
+        self.ds_min = o.ds_min if o.ds_min is not None else ds * 1e-6
+        # an explicit first step is the user's to take; after it no default step exceeds the estimate
+        self.ds_max = o.ds_max if o.ds_max is not None else min(ds * 10.0, max(ds, ds_crit))
+        t_du, t_dp = self.tangent_from(K, g, F, None, None)
+        if direction < 0:
+            t_du, t_dp = -t_du, -t_dp
+        self.u, self.p, self.q = u, float(p0), q
+        self.t_du, self.t_dp = t_du, t_dp
+        self.accept(q)
+        self.n_neg = self.count(K, F)
+        self.step, self.branch, self.s = 0, 0, 0.0
+        r = self.system.residual(q, lam)
+        return self.record(q, r, p0, st.iterations, 0.0, self.n_neg)
+
+    def critical_increment(self, u, p, K, F, du_dp, direction, q):
+        """Linearised parameter increment to the nearest critical point ahead (None: none or unknown).
+
+        Only from a start whose factorisation ``K = L D L^T`` has a positive
+        ``D`` (``K`` positive definite; see
+        :func:`~shellform.solvers.step_bounds.linearised_critical_increment`).
+        An estimate, not a stability check: a start it cannot judge goes
+        without one.
+        """
+        if not isinstance(F, LDLFactor) or not np.all(F.d > 0.0):
+            return None
+        t0 = time.perf_counter()
+        crit = linearised_critical_increment(lambda uu, pp: self.pb.jacobian(uu, pp), u, p, K, F, du_dp,
+                                             1.0 if direction >= 0 else -1.0, float(np.max(np.abs(q))))
+        self.timer.add("step_bounds", t0)
+        return crit
+
+    # -- one step with cut-backs -------------------------------------------------------------
+    def attempt(self, ds) -> StepPoint:
+        """Predict and correct from the current point; return the new point or raise."""
+        du0, dp0 = ds * self.t_du, ds * self.t_dp
+        u, p, q, r, its = correct(self, self.u, self.p, du0, dp0, ds)
+        du, dp = u - self.u, p - self.p
+        cosang = self.dot(du, dp, self.t_du, self.t_dp) / max(self.norm(du, dp), 1e-300)
+        if cosang < math.cos(math.radians(self.o.max_angle_deg)):
+            raise StepFailure(
+                f"converged point turned {math.degrees(math.acos(max(-1.0, min(1.0, cosang)))):.1f} deg away "
+                "from the predictor (possible branch jump)"
+            )
+        t_du, t_dp, n_neg, K = self.analyse_point(u, p, du, dp, q)
+        return StepPoint(u, p, q, r, its, du, dp, t_du, t_dp, n_neg)
+
+    def take_step(self) -> tuple[float, StepPoint]:
+        """One accepted step with its arc length, cut back as often as it takes (or a StepFailure)."""
+        o = self.o
+        ds = min(self.ds, self.ds_max)
+        jump_cuts, jump_seen = 0, None
+        last_msg, singular = "", False
+        while True:
+            try:
+                out = self.attempt(ds)
+                n_neg = out.n_neg
+                jump = n_neg - self.n_neg if (self.n_neg >= 0 and n_neg >= 0) else 0
+                if (
+                    abs(jump) > 1 and jump != jump_seen
+                    and jump_cuts < o.max_inertia_cutbacks and ds > 4 * self.ds_min
+                ):
+                    # two critical points in one step: a shorter step separates them. The same
+                    # jump in the shorter step means a multiple eigenvalue (symmetry): accept it.
+                    jump_cuts += 1
+                    jump_seen = jump
+                    self.rejected += 1
+                    ds *= 0.5
+                    continue
+                return ds, out
+            except (StepFailure, SingularMatrixError) as exc:
+                last_msg = str(exc)
+                singular = isinstance(exc, SingularMatrixError) or exc.singular
+                self.rejected += 1
+                ds *= 0.5
+                self.cut_back = True
+                if ds < self.ds_min:
+                    # a singular tangent is named by the motions it cannot resist
+                    soft = describe_soft_modes(self.system, self.pb.jacobian(self.u, self.p, self.q)[0]) if singular else ""
+                    raise StepFailure(
+                        f"step {self.step + 1}: arc length cut below ds_min = {self.ds_min:.3e} "
+                        f"at parameter {self.p:.6g}; last failure: {last_msg}{'; ' + soft if soft else ''}"
+                    ) from None
+    # -- main loop --------------------------------------------------------------------------------------
+    def run(self, callback, checkpoint, checkpoint_every, first_point, switch_from=None) -> ContinuationResult:
+        """Extend the path until a bound, an event stop, the step budget or a failure; the result."""
+        o = self.o
+        status, message, success = "max_steps", "", True
+        if self.finished is not None and self.finished[0] not in ("max_steps", "callback"):
+            # resumed from the checkpoint of a run that ended for good: nothing to add
+            status, message, success = self.finished
+            self.timer.t["total"] = time.perf_counter() - self.t_created
+            return self.result(success, message, status)
+        try:
+            if first_point is not None and callback is not None and callback(first_point):
+                raise StopIteration
+            if switch_from is not None:
+                switch_at(self, *switch_from)
+                if callback is not None and callback(self.record_current()):
+                    raise StopIteration
+            while self.step < o.max_steps:
+                stop = self.advance(callback)
+                if checkpoint is not None and checkpoint_every and self.step % checkpoint_every == 0:
+                    save(self, checkpoint)
+                if stop is not None:
+                    status, message = stop
+                    break
+            else:
+                message = f"reached max_steps = {o.max_steps}"
+        except StopIteration:
+            status, message = "callback", f"stopped by the callback after step {self.step}"
+        except StepFailure as exc:
+            status, message, success = "failed", str(exc), False
+        self.finished = (status, message, success)
+        if checkpoint is not None:
+            save(self, checkpoint)
+        self.timer.t["total"] = time.perf_counter() - self.t_created
+        return self.result(success, message, status)
+
+    def advance(self, callback) -> tuple[str, str] | None:
+        """One accepted step with its events, landing and branch switch; why to stop, or None."""
+        o = self.o
+        lo_b, hi_b = o.parameter_bounds
+        self.cut_back = False
+        A = (self.u, self.p, self.t_du, self.t_dp)
+        n_A = self.n_neg
+        ds, B = self.take_step()
+        new_events = self.events_in_step(A, B, ds, n_A) if o.detect_events else []
+        hit_bound = (B.p >= hi_b and self.p < hi_b) or (B.p <= lo_b and self.p > lo_b) or not lo_b <= B.p <= hi_b
+        if hit_bound and o.land_on_bounds:
+            landed = land(self, B.u, B.p, lo_b, hi_b)
+            if landed is not None:
+                B = landed
+                ds = self.norm(B.du, B.dp)
+                new_events = [e for e in new_events if lo_b <= e.parameter <= hi_b]
+        # switching branches: the primary branch ends at the bifurcation point
+        switch_ev = None
+        if o.on_bifurcation == "switch" and self.switches < o.max_switches:
+            bifs = [e for e in new_events if e.kind == "bifurcation" and e.located]
+            switch_ev = bifs[0] if bifs else None
+        if switch_ev is not None:
+            B, ds = self.at_event(switch_ev)
+            new_events = [e for e in new_events if e.arc_length <= switch_ev.arc_length]
+            hit_bound = False
+        t_dp_A = self.t_dp
+        self.step += 1
+        self.s += ds
+        self.u, self.p, self.q = B.u, B.p, B.q
+        self.t_du, self.t_dp, self.n_neg = B.t_du, B.t_dp, B.n_neg
+        self.accept(B.q)
+        pt = self.record(B.q, B.r, B.p, B.iterations, ds, B.n_neg)
+        self.events.extend(new_events)
+        self.adapt_step(ds, B.iterations, t_dp_A)
+        if callback is not None and callback(pt):
+            raise StopIteration
+        # leave the bifurcation point along the critical mode (or the given shape)
+        if switch_ev is not None:
+            mode = (np.asarray(o.switch_direction, dtype=float)[self.free] if o.switch_direction is not None
+                    else switch_ev.mode[self.free])
+            switch_at(self, self.u, self.p, self.t_du, self.t_dp, mode, self.s)
+            if callback is not None and callback(self.record_current()):
+                raise StopIteration
+        return self.stop_reason(new_events, hit_bound)
+
+    def events_in_step(self, A, B: StepPoint, ds: float, n_A: int) -> list[PathEvent]:
+        """The limit and bifurcation points between the last point A and the step's end B, located."""
+        new_events = []
+        turned = math.copysign(1.0, B.t_dp) != math.copysign(1.0, self.t_dp)
+        dn = B.n_neg - n_A if (B.n_neg >= 0 and n_A >= 0) else 0
+        end = (B.u, B.p, B.q, B.r)
+        if turned:
+            ev, _ = locate(self, "limit", A, end, ds, n_A)
+            ev.n_negative_after = B.n_neg
+            new_events.append(ev)
+        if (not turned and dn != 0) or (turned and abs(dn) > 1):
+            ev, _ = locate(self, "bifurcation", A, end, ds, n_A)
+            if turned:
+                ev.located = False
+                ev.message = "bifurcation and limit point in one step; bracket is the whole step"
+            ev.n_negative_after = B.n_neg
+            new_events.append(ev)
+        return new_events
+
+    def at_event(self, ev: PathEvent) -> tuple[StepPoint, float]:
+        """The located bifurcation ``ev`` as the step's end point, with the arc length to it."""
+        ev.switched = True
+        q = ev.q.copy()
+        u, p = q[self.free].copy(), ev.parameter
+        r = self.system.residual(q, self.pb.lam_mu(p)[0])
+        point = StepPoint(u, p, q, r, 0, u - self.u, p - self.p, ev.tangent[:-1], ev.tangent[-1],
+                          ev.n_negative_after)
+        return point, ev.arc_length - self.s
+
+    def adapt_step(self, ds: float, iterations: int, t_dp_A: float) -> None:
+        """The next step's arc length: from the corrector's iterations, bounded by the approach to a fold."""
+        o = self.o
+        factor = math.sqrt(o.target_iterations / max(iterations, 1))
+        factor = min(max(factor, 0.5), 2.0)
+        if self.cut_back:
+            factor = min(factor, 1.0)
+        self.ds = min(max(ds * factor, self.ds_min), self.ds_max)
+        # dp/ds falling towards a fold: the next step may pass it, but not go far beyond
+        to_fold = fold_distance(t_dp_A, self.t_dp, ds)
+        if to_fold is not None:
+            self.ds = min(self.ds, max(FOLD_OVERSHOOT * to_fold, self.ds_min))
+
+    def stop_reason(self, new_events: list[PathEvent], hit_bound: bool) -> tuple[str, str] | None:
+        """``(status, message)`` when the run should end after this step, else None."""
+        o = self.o
+        lo_b, hi_b = o.parameter_bounds
+        if new_events and o.on_bifurcation == "stop" and any(e.kind == "bifurcation" for e in new_events):
+            return "event", f"stopped at the bifurcation point found in step {self.step}"
+        if o.stop_after_events is not None and len(self.events) >= o.stop_after_events:
+            return "event", f"stopped after {len(self.events)} events"
+        if hit_bound:
+            return "parameter_bound", f"parameter reached {self.p:.6g}, bounds [{lo_b:.6g}, {hi_b:.6g}]"
+        disp = float(np.max(np.abs(self.q[self.free] - self.system.q_ref[self.free])))
+        if o.max_displacement is not None and disp > o.max_displacement:
+            return "displacement_bound", (
+                f"largest free displacement {disp:.6g} exceeds max_displacement {o.max_displacement:.6g}"
+            )
+        return None
+
+    # -- effects with history (rod reference frames) ------------------------------------------------
+    def accept(self, q):
+        """Tell effects with history that ``q`` is accepted (rod frames follow the path), and
+        take its member forces as the forces in play of the next step's equilibrium tests."""
+        hook = getattr(self.system, "accept", None)
+        if hook is not None:
+            hook(q)
+        self.play = None
+
+    def history_objects(self):
+        """Objects holding path history that a checkpoint must carry (rod reference frames)."""
+        objs, seen = [], set()
+        for e in self.system.effects:
+            f = getattr(e, "frames", None)
+            if f is not None and hasattr(f, "state") and hasattr(f, "restore") and id(f) not in seen:
+                seen.add(id(f))
+                objs.append(f)
+        return objs
+
+    def record_current(self):
+        """Record the point a branch switch has just made current."""
+        return self.record(*self.last_point)
+
+    def result(self, success, message, status):
+        table = {}
+        for k, v in self.table.items():
+            dtype = int if k in ("step", "branch", "n_negative", "iterations") else float
+            table[k] = np.asarray(v, dtype=dtype)
+        return ContinuationResult(
+            success=success, message=message, status=status, control=self.control, steps=self.step,
+            rejected_steps=self.rejected, newton_iterations=self.newton_total, table=table,
+            states=self.states, state_steps=self.state_steps, events=self.events, timings=dict(self.timer.t),
+            monitors=tuple(self.monitors), parameter_scale=math.sqrt(self.c2),
+        )
