@@ -53,12 +53,11 @@ from .schema import (
     BUCKLING,
     FORM_FINDING,
     GRID_GROUPS,
-    PLANFORMS,
     LIMITS,
+    PLANFORMS,
     SCENE,
     Table,
     check_table,
-    short,
 )
 
 if sys.version_info >= (3, 11):
@@ -103,6 +102,9 @@ MAX_TIME_STEPS = 1.0e8
 MAX_SCENE_BYTES = LIMITS["scene_bytes"]
 #: nodes of a structure (a planform grid, the hemisphere's rods, a mesh file or [nodes])
 MAX_NODES = LIMITS["items"]
+#: edge length over radius of a rod: beyond it the start of an indentation is unstable (at 5,000 on the
+#: hemisphere of 5 cm the path cannot leave its start, at 50,000 the start itself is unstable)
+MAX_SLENDERNESS = 1000
 
 
 def _source(data: dict) -> str:
@@ -406,6 +408,12 @@ def _check_hemisphere(scene: dict) -> None:
     if rods.get("radius") is not None and 2.0 * rods["radius"] >= spacing:
         raise SceneError("rods.radius", f"got {rods['radius']!r}; expected less than half the joint spacing "
                          f"pi R / (n + 1) = {spacing:.4g} m (thicker rods would overlap their neighbours)")
+    rod_radius = rods.get("radius") or PAPER["rod_radius"]
+    if rod_radius * MAX_SLENDERNESS < dl:
+        # thinner, the rods' bending stiffness vanishes against their stretching and the start is unstable
+        key, value = ("rods.radius", rod_radius) if rods.get("radius") else ("geometry.voronoi_length", dl)
+        raise SceneError(key, f"got {value!r}; the rods' edges (voronoi_length {dl:.4g} m) may be at most "
+                         f"{MAX_SLENDERNESS} times their radius ({rod_radius:.4g} m)")
     nodes = 2 * n * np.pi * radius / dl  # each of the 2 n rods is at most half a great circle long
     if nodes > MAX_NODES:
         raise SceneError("geometry.voronoi_length", f"got {dl!r}: the rods would have about {nodes:,.0f} nodes; at "
@@ -416,10 +424,16 @@ def _check_hemisphere(scene: dict) -> None:
                          "dead forces, as in the paper)")
 
 
+def _shown(path: Path) -> str:
+    """A file name for a message (its last 200 characters)."""
+    text = str(path)
+    return text if len(text) <= 200 else "..." + text[-197:]
+
+
 def read_scene_text(path) -> str:
     """The text of a scene file: a regular file of at most ``MAX_SCENE_BYTES``, UTF-8 encoded."""
     path = Path(path)
-    where = short(str(path), 200).strip("'")
+    where = _shown(path)
     try:
         info = path.stat()
     except (OSError, ValueError) as exc:
@@ -458,7 +472,7 @@ def parse_toml(text: str, where: str = "scene") -> dict:
 def load_scene(path) -> dict:
     """Read and validate a TOML scene file (relative file names are relative to its folder)."""
     path = Path(path)
-    data = parse_toml(read_scene_text(path), short(str(path), 200).strip("'"))
+    data = parse_toml(read_scene_text(path), _shown(path))
     scene = parse_scene(data, base_dir=path.parent)
     scene["name"] = scene["name"] or path.stem
     return scene

@@ -192,6 +192,8 @@ def test_continuation_bounds_are_named_not_left_to_the_solver(continuation, key,
     ({"n": 9999, "voronoi_length": 1e-6}, "geometry.voronoi_length", "at most 2,000,000"),
     ({"n": 3, "radius": 0.05, "voronoi_length": 5e-3, "rods": {"radius": 400.0}}, "rods.radius",
      "half the joint spacing"),
+    ({"n": 3, "radius": 0.05, "voronoi_length": 5e-3, "rods": {"radius": 2e-12}}, "rods.radius",
+     "at most 1000 times their radius"),
 ])
 def test_hemisphere_sizes_are_named_before_building(geometry, key, words):
     rods = geometry.pop("rods", None)

@@ -506,7 +506,7 @@ def _capped(scene: dict) -> dict | None:
     ind["max_displacement"] = min(ind["max_displacement"], 0.3)
     d = a["dynamics"]
     if d["time_step"] is not None and d["duration"] is not None:
-        d["duration"] = min(d["duration"], 100 * d["time_step"])
+        d["duration"] = min(d["duration"], 20 * d["time_step"])
     return scene
 
 
