@@ -416,7 +416,8 @@ def hemisphere_model(scene: dict):
 
 def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
     from .gridshell.hemisphere import prestress_on_net
-    from .gridshell.indentation import classify_configuration, indentation_system, trace_indentation
+    from .gridshell.configurations import classify_configuration
+    from .gridshell.indentation import indentation_system, trace_indentation
 
     if resume:
         progress("the indentation keeps no checkpoint: starting over")

@@ -7,13 +7,9 @@ import scipy.sparse as sp
 
 from shellform.errors import ModelError
 from shellform.gridshell.hemisphere import build_hemisphere, prestress_on_net
-from shellform.gridshell.indentation import (
-    classify_configuration,
-    count_negative,
-    indentation_system,
-    smallest_eigenpair,
-    trace_indentation,
-)
+from shellform.gridshell.configurations import classify_configuration
+from shellform.gridshell.indentation import indentation_system, trace_indentation
+from shellform.solvers.stability import count_negative, smallest_eigenpair
 
 # published.toml [hemisphere.mode_I], [hemisphere.mode_II]
 MODE_I = [1.1, 1.7, 1.9]

@@ -9,15 +9,14 @@ from .hemisphere import (
     prestress_by_paths,
     prestress_on_net,
 )
+from ..solvers.stability import count_negative, smallest_eigenpair
+from .configurations import classify_configuration, configuration_features
 from .indentation import (
+    IndentationOptions,
     IndentationResult,
     IndentationSetup,
     Snap,
-    classify_configuration,
-    configuration_features,
-    count_negative,
     indentation_system,
-    smallest_eigenpair,
     trace_indentation,
 )
 from .study import construction_case, indentation_case
@@ -30,6 +29,7 @@ __all__ = [
     "compare_shapes",
     "prestress_by_paths",
     "prestress_on_net",
+    "IndentationOptions",
     "IndentationResult",
     "IndentationSetup",
     "Snap",

@@ -39,7 +39,7 @@ def draw_gridshell(ax, model: HemisphereModel, q: np.ndarray, highlight: bool = 
 
 def draw_profiles(ax, model: HemisphereModel, q: np.ndarray) -> None:
     """Side views of the two central rods: ``(x, z)`` of the u rod, ``(y, z)`` of the v rod."""
-    from .indentation import central_profiles
+    from .configurations import central_profiles
 
     R = model.radius
     for prof, colour, name in zip(central_profiles(model, q), ("tab:red", "tab:blue"), ("u0 (x, z)", "v0 (y, z)")):

@@ -1,0 +1,142 @@
+"""Through a snap: the stable state beyond a critical point, and where a branch loses stability.
+
+The critical state is pushed along its critical mode and carried downhill by
+damped implicit Euler dynamics (the gridshell paper's own integrator) or an
+energy descent, then Newton polishes it; a state that ends on a saddle is
+pushed along its unstable mode and tried again. Where a stable branch loses
+stability while the apex displacement still increases (a bifurcation), the
+point is located by bisection on the displacement.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..solvers.newton import solve_static
+from ..solvers.stability import count_negative, smallest_eigenpair
+
+#: Newton solves use the LDL^T factorisation only: a solve that fails its
+#: accuracy check (a tangent next to a critical point) is then retried with a
+#: regularising shift, which is cheap, instead of a sparse LU factorisation,
+#: which costs twenty LDL^T factorisations on these networks
+LINEAR_SOLVER = "ldl"
+
+
+def lowest_mode(K) -> np.ndarray | None:
+    """Unit eigenvector of the smallest eigenvalue of ``K`` (None when it cannot be computed)."""
+    return smallest_eigenpair(K)[1]
+
+
+def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, t_max: float):
+    """Let the structure move from ``q`` under damped implicit Euler dynamics until it is nearly at rest.
+
+    This is the paper's own way through a snap (inertia and damping carry the
+    structure to the next stable state). Returns the last state, or ``q``
+    when no time integrator is available.
+    """
+    try:
+        from ..solvers.implicit_euler import implicit_euler, lumped_mass
+    except ImportError:  # pragma: no cover - the integrator is optional here
+        return q, 0
+    system = setup.system
+    mass = lumped_mass(system.structure, setup.model.network)
+    scale = max(float(np.linalg.norm(system.residual(system.state(mu=mu, base=q))[system.constrained])), 1e-300)
+
+    def stop(t, qq, v, static):
+        return static <= 1e-7 * scale
+
+    res = implicit_euler(system, h, t_max, q0=q, mass=mass, damping=damping, mu=mu, stop=stop,
+                         linear_solver=LINEAR_SOLVER)
+    return res.q, int(sum(res.newton_iterations))
+
+
+def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, amplitude: float,
+            method: str = "dynamic", max_tries: int = 4, rounds: int = 10, iterations_per_round: int = 40,
+            time_step: float = 1.0e-3, damping: float = 100.0, t_max: float = 0.5):
+    """A stable equilibrium at ``mu`` reached from the critical state ``q0``.
+
+    The start is pushed along ``mode_free`` (the critical mode) so that it
+    leaves the unstable state; then either damped dynamics (``"dynamic"``,
+    implicit Euler with time step ``time_step`` and mass-proportional damping
+    ``damping`` [1/s], for at most ``t_max`` seconds) or a pure energy descent
+    (``"energy"``, Newton with regularised steps) carries it downhill, and
+    Newton polishes the result. When it ends on a saddle, it is pushed along
+    the saddle's unstable mode and tried again.
+    """
+    system = setup.system
+    free = system.free
+    n_x = 3 * setup.model.structure.n_nodes
+    q = np.array(q0, dtype=float)
+    iterations = 0
+    for _ in range(max_tries):
+        if mode_free is not None:
+            d = np.zeros(system.n_dof)
+            d[free] = mode_free
+            trans = np.abs(d[:n_x]).max()
+            if trans > 0:
+                q = q + amplitude * setup.model.radius * d / trans
+        if method == "auto":
+            # a plain energy descent first; damped dynamics only when it stalls
+            frames = setup.model.network.frames.state()
+            res = solve_static(system, q, mu=mu, merit="energy", max_iter=30, rtol=1e-9)
+            iterations += res.iterations
+            if res.success and count_negative(system.tangent_free(res.q)) == 0:
+                system.accept(res.q)
+                return res.q, iterations, "stable"
+            setup.model.network.frames.restore(frames)
+            q, its = dynamic_step_out(setup, q, mu, time_step, damping, t_max)
+            iterations += its
+        elif method == "dynamic":
+            q, its = dynamic_step_out(setup, q, mu, time_step, damping, t_max)
+            iterations += its
+        # descend in rounds, accepting the state in between: a snap can turn rod
+        # edges far from the stored frames, and the frames must follow
+        for _ in range(rounds):
+            # LU fallback here: next to a supercritical bifurcation the stable
+            # state has a nearly singular tangent and shifted steps crawl
+            res = solve_static(system, q, mu=mu, merit="energy", max_iter=iterations_per_round, rtol=1e-9)
+            iterations += res.iterations
+            q = res.q
+            system.accept(q)
+            if res.success:
+                break
+        else:
+            return None, iterations, f"energy descent failed: {res.message}"
+        K = system.tangent_free(q)
+        n_neg = count_negative(K)
+        if n_neg == 0:
+            return q, iterations, "stable"
+        mode_free = lowest_mode(K)
+        if mode_free is None:
+            return None, iterations, "could not compute the unstable mode of a saddle"
+    return None, iterations, f"still unstable after {max_tries} pushes"
+
+
+def locate_stability_loss(setup, qa, mua, qb, mub, tol):
+    """Locate where the path between a stable point A and an unstable point B loses stability.
+
+    ``mu`` increases from A to B (no fold in between). Bisection on ``mu``
+    with the stability of each point from the inertia of its tangent (the
+    eigenvalue that crosses zero need not be the smallest one at A: soft
+    twisting modes of the rods can lie below it), each point solved by
+    Newton from the interpolated state. Returns ``(mu, q, located)``: the
+    middle of the final bracket, the state at its unstable end, and whether
+    the bracket came down to ``tol``.
+    """
+    system = setup.system
+    lo, hi = (mua, qa), (mub, qb)
+    while hi[0] - lo[0] > tol:
+        mu = 0.5 * (lo[0] + hi[0])
+        start = 0.5 * (lo[1] + hi[1])
+        res = solve_static(system, start, mu=mu, merit="residual", max_iter=30, linear_solver=LINEAR_SOLVER)
+        if not res.success:
+            # next to the critical point the tangent is nearly singular and the
+            # plain Newton step overshoots; a regularised step does not
+            res = solve_static(system, start, mu=mu, merit="energy", max_iter=30, linear_solver=LINEAR_SOLVER)
+        if not res.success:
+            return 0.5 * (lo[0] + hi[0]), hi[1], False
+        if count_negative(system.tangent_free(res.q)) == 0:
+            lo = (mu, res.q)
+        else:
+            hi = (mu, res.q)
+    return 0.5 * (lo[0] + hi[0]), hi[1], True
