@@ -95,9 +95,9 @@ def nested_dissection_times(A: sp.csr_matrix, q: np.ndarray, free: np.ndarray, r
     """CHOLMOD's analysis and numeric factorisation of ``A`` in a nested-dissection order of its nodes."""
     from cvxopt import cholmod, matrix, spmatrix
 
-    from shellform.solvers.relaxation import _dof_order
+    from shellform.solvers.relaxation.ordering import dof_order
 
-    t_order, order = best(lambda: _dof_order(A, q, free), 1)
+    t_order, order = best(lambda: dof_order(A, q, free), 1)
     U = sp.triu(A, format="coo")
     M = spmatrix(matrix(U.data), matrix(U.row.astype(np.int64)), matrix(U.col.astype(np.int64)), A.shape)
     t_first, F = best(lambda: cholmod.symbolic(M, uplo="U", p=matrix(order.astype(np.int64))), repeat)

@@ -33,13 +33,13 @@ VARIANTS = [(True, True), (True, False), (False, True), (False, False)]
 
 
 def _run(name: str, n: int, active: bool, sweeps: bool, out_q) -> None:
-    import shellform.solvers.relaxation as relaxation
     from shellform.mra import form_find
-    from shellform.solvers.patch import NodeGraph, patchable
+    from shellform.solvers.relaxation import Refinements, implicit
+    from shellform.solvers.relaxation.patch import NodeGraph, patchable
 
     warnings.simplefilter("ignore")
     spent = [0.0]
-    sweep = relaxation._sweep_fronts
+    sweep = implicit.sweep_fronts
 
     def timed(*args):
         t = time.perf_counter()
@@ -47,23 +47,22 @@ def _run(name: str, n: int, active: bool, sweeps: bool, out_q) -> None:
         spent[0] += time.perf_counter() - t
         return out
 
-    relaxation._sweep_fronts = timed
+    implicit.sweep_fronts = timed
     if sweeps and not active:
         # form_find leaves the sweeps out without the active set; put them in to measure why
-        run_implicit = relaxation._run_implicit
+        stage_of = implicit._stage
+        graphs = {}
 
-        def forced(system, *args, **kw):
-            ptc = relaxation._ptc
-            graph = NodeGraph(system) if patchable(system) else None
-            relaxation._ptc = lambda *a: ptc(*a[:11], False, graph)
-            try:
-                return run_implicit(system, *args, **kw)
-            finally:
-                relaxation._ptc = ptc
+        def forced(system, *args):
+            stage = stage_of(system, *args)
+            if "graph" not in graphs:
+                graphs["graph"] = NodeGraph(system) if patchable(system) else None
+            stage.graph = graphs["graph"]
+            return stage
 
-        relaxation._run_implicit = forced
+        implicit._stage = forced
     net = make_net(name, n)
-    res = form_find(net, slack_active_set=active, front_sweeps=sweeps)
+    res = form_find(net, refinements=Refinements(slack_active_set=active, front_sweeps=sweeps))
     r = res.relaxation
     out_q.put({"net": name, "nodes": int(net.structure.n_nodes), "active_set": active, "front_sweeps": sweeps,
                "converged": bool(r.success), "iterations": int(r.iterations),

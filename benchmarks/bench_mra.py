@@ -69,22 +69,24 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from shellform.solvers.relaxation import Refinements  # noqa: E402
+
 SIDE = 30.0
 EA = 1.0e7
 SLACK = 0.05
 #: the fit "to 1e5" is over the sizes up to this many nodes (the standard 10^3, 10^4, 10^5)
 SMALL_FIT_NODES = 120_000
 
-# the variants of a run: relax options
+# the variants of a run: form_find's keywords
 VARIANTS = {
     "fast": {"scheme": "implicit"},
     "force_density": {"scheme": "implicit", "start": "force_density"},
     "ldl": {"scheme": "implicit", "linear_solver": "ldl"},
-    "plain": {"scheme": "implicit", "slack_active_set": False},
-    "no_sweeps": {"scheme": "implicit", "front_sweeps": False},
-    "uncorrected": {"scheme": "implicit", "factor_correction": False},
-    "unsettled": {"scheme": "implicit", "slack_settling": False},
-    "unrepaired": {"scheme": "implicit", "step_repair": False},
+    "plain": {"scheme": "implicit", "refinements": Refinements(slack_active_set=False)},
+    "no_sweeps": {"scheme": "implicit", "refinements": Refinements(front_sweeps=False)},
+    "uncorrected": {"scheme": "implicit", "refinements": Refinements(factor_correction=False)},
+    "unsettled": {"scheme": "implicit", "refinements": Refinements(slack_settling=False)},
+    "unrepaired": {"scheme": "implicit", "refinements": Refinements(step_repair=False)},
     "before": {"scheme": "implicit", "start": "reference", "linear_solver": "ldl"},
     "coarse": {"scheme": "implicit"},  # started from a coarser net's force densities (see _coarse_start)
     "coarse_net": {"scheme": "implicit", "start": "coarse_net"},  # form_find's own coarse net, from the net itself

@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla  # noqa: E402
 from bench_mra import make_net  # noqa: E402
 from shellform.mra import form_find  # noqa: E402
 from shellform.solvers.linear import CholeskyFactor  # noqa: E402
-from shellform.solvers.relaxation import _pcg  # noqa: E402
+from shellform.solvers.relaxation.linalg import pcg  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 SHIFTS = (1.0, 1e-2, 1e-4, 1e-6)
@@ -125,7 +125,7 @@ def main(argv=None) -> dict:
         t0 = time.perf_counter()
         vcycle = VCycle(A, args.side)
         t1 = time.perf_counter()
-        x, _, its = _pcg(A, b, vcycle, 1e-6, MAX_CG)
+        x, _, its = pcg(A, b, vcycle, 1e-6, MAX_CG)
         res_last = float(np.linalg.norm(b - A @ x) / np.linalg.norm(b))
         t2 = time.perf_counter()
         CholeskyFactor(A)

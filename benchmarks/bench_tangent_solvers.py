@@ -46,10 +46,10 @@ def captured_systems(n: int, keep_every: int = 8) -> tuple[list, int]:
     from bench_mra import make_net
 
     from shellform.mra import form_find
-    from shellform.solvers import relaxation
+    from shellform.solvers.relaxation.linalg import SPDSolve
 
     kept, last, count = [], [None], [0]
-    original = relaxation._SPDSolve.solve
+    original = SPDSolve.solve
 
     def recording(self, A, b, rtol):
         entry = (count[0], A.copy(), b.copy())
@@ -59,11 +59,11 @@ def captured_systems(n: int, keep_every: int = 8) -> tuple[list, int]:
         count[0] += 1
         return original(self, A, b, rtol)
 
-    relaxation._SPDSolve.solve = recording
+    SPDSolve.solve = recording
     try:
         res = form_find(make_net(n))
     finally:
-        relaxation._SPDSolve.solve = original
+        SPDSolve.solve = original
     if not res.converged:
         raise RuntimeError(f"{n} x {n} net: {res.relaxation.message}")
     if last[0] is not None and kept[-1][0] != last[0][0]:

@@ -345,5 +345,5 @@ def test_coarse_starts_reach_the_flat_start_shape(tmp_path, start):
 def test_a_scene_can_turn_each_solver_refinement_off(key):
     from shellform.mra.case import _merge, _solver_options
 
-    assert _solver_options(_merge({}), None)[key] is True
-    assert _solver_options(_merge({"solver": {key: False}}), None)[key] is False
+    assert getattr(_solver_options(_merge({}), None)["options"].refinements, key) is True
+    assert getattr(_solver_options(_merge({"solver": {key: False}}), None)["options"].refinements, key) is False

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-import shellform.solvers.relaxation as relaxation
-from shellform.solvers.patch import NodeGraph, Patch, patchable
-from shellform.solvers.relaxation import energy_change, nodal_masses, relax
+from shellform.solvers.relaxation import Refinements, energy_change, nodal_masses, patch_steps, relax
+from shellform.solvers.relaxation.patch import NodeGraph, Patch, patchable
+from shellform.solvers.relaxation.ropes import is_slack
 
 from test_relaxation import small_net
 
@@ -39,10 +39,10 @@ def test_members_of_nodes_are_those_with_an_end_among_them():
 
 def _state(system, iterations=2):
     """A state part of the way to equilibrium, with slack and taut ropes."""
-    res = relax(system, max_iterations=iterations, front_sweeps=False)
+    res = relax(system, max_iterations=iterations, refinements=Refinements(front_sweeps=False))
     assert not res.success
     rope = system.effects[0]
-    slack = rope.is_slack(res.q)
+    slack = is_slack(rope, res.q)
     assert slack.any() and not slack.all()
     return res.q
 
@@ -107,14 +107,14 @@ def test_a_patch_of_axial_members_keeps_their_law():
 def test_a_sweep_lowers_the_potential_moves_only_the_patch_and_keeps_the_residual_exact(monkeypatch):
     system = small_net(n=9)
     q = _state(system)
-    monkeypatch.setattr(relaxation, "FRONT_SHARE", 1.0)  # sweep whatever the share of hot nodes
+    monkeypatch.setattr(patch_steps, "FRONT_SHARE", 1.0)  # sweep whatever the share of hot nodes
     graph = NodeGraph(system)
     free = system.free
     st_m = np.repeat(nodal_masses(system), 3)[free]
     st = type("St", (), {"m": st_m, "damping": 0.0})()
     r = system.residual(q)[free]
     q1 = q.copy()
-    steps = relaxation._sweep_fronts(system, graph, st, q1, r, 1e3, system.external_force(), 0.0, 0.0)
+    steps = patch_steps.sweep_fronts(system, graph, st, q1, r, 1e3, system.external_force(), 0.0, 0.0)
     assert steps >= 1
     assert energy_change(system, q, q1) < 0
     acc = lambda res: np.linalg.norm((res / st_m).reshape(-1, 3), axis=1).max()
@@ -126,14 +126,14 @@ def test_a_sweep_lowers_the_potential_moves_only_the_patch_and_keeps_the_residua
 
 def test_relaxation_with_sweeps_reaches_the_same_shape(monkeypatch):
     system = small_net(n=12, EA=1e5)
-    plain = relax(system, rtol=1e-9, front_sweeps=False)
-    monkeypatch.setattr(relaxation, "FRONT_SHARE", 0.3)  # a small net's fronts are a large share of it
+    plain = relax(system, rtol=1e-9, refinements=Refinements(front_sweeps=False))
+    monkeypatch.setattr(patch_steps, "FRONT_SHARE", 0.3)  # a small net's fronts are a large share of it
     swept = relax(system, rtol=1e-9)
     assert plain.success and swept.success, (plain.message, swept.message)
     assert plain.local_steps == 0 and swept.local_steps > 0
     assert np.max(np.abs(swept.q - plain.q)) < 1e-7
     # without the slack-rope active set the sweeps are left out
-    assert relax(system, rtol=1e-9, slack_active_set=False).local_steps == 0
+    assert relax(system, rtol=1e-9, refinements=Refinements(slack_active_set=False)).local_steps == 0
 
 
 def test_sweeps_are_left_out_where_a_patch_cannot_hold_the_energy():

@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 
 from shellform.solvers.linear import CholeskyFactor
-from shellform.solvers.local_correction import MOST_SHARE, RINGS, LocalCorrection
-from shellform.solvers.relaxation import _diagonal_positions, _pcg, _SPDSolve, relax
+from shellform.solvers.relaxation import Refinements, relax
+from shellform.solvers.relaxation.linalg import SPDSolve, diagonal_positions, pcg
+from shellform.solvers.relaxation.local_correction import MOST_SHARE, RINGS, LocalCorrection
+from shellform.solvers.relaxation.ropes import engaged_terms, is_slack
 
 from test_relaxation import small_net
 
@@ -21,13 +23,13 @@ def corner_pulled_taut():
     rope = system.effects[0]
     i, j = np.divmod(rope.conn, N)
     corner = (i < N // 3).all(axis=1) & (j < N // 3).all(axis=1)
-    engaged = rope.is_slack(res.q) & corner
+    engaged = is_slack(rope, res.q) & corner
     assert engaged.sum() >= 10
     K = system.tangent_free(res.q)
     K.sort_indices()
     A0 = K.copy()
-    A0.data[_diagonal_positions(K)] += 1e-6 * K.diagonal().mean()
-    _, values = rope.engaged_terms(res.q, engaged)
+    A0.data[diagonal_positions(K)] += 1e-6 * K.diagonal().mean()
+    _, values = engaged_terms(rope, res.q, engaged)
     A1 = A0.copy()
     A1.data += system.assemble_free({rope: values}).data
     node_of = np.unique(system.free // 3, return_inverse=True)[1]
@@ -59,9 +61,9 @@ def test_corrected_factor_solves_in_a_few_iterations_what_the_old_one_cannot(cor
     old = CholeskyFactor(A0)
     b = np.random.default_rng(0).standard_normal(A0.shape[0])
     corrected = correction.preconditioner(A1, A0.data, old.solve)
-    x, ok, its = _pcg(A1, b, corrected, 1e-10, 200)
+    x, ok, its = pcg(A1, b, corrected, 1e-10, 200)
     assert ok and np.linalg.norm(A1 @ x - b) <= 1e-10 * np.linalg.norm(b)
-    _, ok_old, its_old = _pcg(A1, b, old.solve, 1e-10, 200)
+    _, ok_old, its_old = pcg(A1, b, old.solve, 1e-10, 200)
     assert ok_old
     # each rope pulled taut is an outlying eigenvalue for the old factor alone
     assert its <= 5 and its_old >= its + 4
@@ -83,13 +85,13 @@ def test_unchanged_matrix_keeps_the_old_factor_and_a_global_change_asks_for_a_ne
 def test_solver_reuses_its_factor_across_a_local_change(corner_pulled_taut):
     system, A0, A1, _, _ = corner_pulled_taut
     b = np.random.default_rng(1).standard_normal(A0.shape[0])
-    solver = _SPDSolve("cholesky", A0.shape[0], cg_max=6, dofs=system.free)
+    solver = SPDSolve("cholesky", A0.shape[0], cg_max=6, dofs=system.free)
     solver.solve(A0, b, 1e-10)
     x = solver.solve(A1, b, 1e-10)
     assert np.linalg.norm(A1 @ x - b) <= 1e-10 * np.linalg.norm(b)
     assert solver.factorizations == 1 and solver.corrected == 1
     # without the correction the same budget does not reach the tolerance
-    plain = _SPDSolve("cholesky", A0.shape[0], cg_max=6, dofs=system.free, correct=False)
+    plain = SPDSolve("cholesky", A0.shape[0], cg_max=6, dofs=system.free, correct=False)
     plain.solve(A0, b, 1e-10)
     plain.solve(A1, b, 1e-10)
     assert plain.factorizations == 2
@@ -98,7 +100,7 @@ def test_solver_reuses_its_factor_across_a_local_change(corner_pulled_taut):
 def test_relaxation_reaches_the_same_shape_with_and_without_the_correction():
     system = small_net(n=15, EA=1e5, boundary=True)
     with_it = relax(system)
-    without = relax(system, factor_correction=False)
+    without = relax(system, refinements=Refinements(factor_correction=False))
     assert with_it.success and without.success
     assert without.corrected_solves == 0
     assert np.abs(with_it.q - without.q).max() < 1e-7

@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from shellform import Structure, build_system
-from shellform.solvers import relaxation
-from shellform.solvers.patch import NodeGraph
-from shellform.solvers.relaxation import _diagonal_positions, _engage_slack_ropes, _settle_slack_set, _SPDSolve, relax
+from shellform.solvers.relaxation import Refinements, active_set, nodal_masses, relax
+from shellform.solvers.relaxation.active_set import engage_slack_ropes, settle_slack_set
+from shellform.solvers.relaxation.linalg import SPDSolve, diagonal_positions
+from shellform.solvers.relaxation.patch import NodeGraph
+from shellform.solvers.relaxation.ropes import engaged_terms, is_slack, linearised, rope_effects, stretched_by
 
 from test_relaxation import small_net
 
@@ -19,16 +21,16 @@ def first_step():
     K = system.tangent_free(q)
     K.sort_indices()
     A = K.copy()
-    A.data[_diagonal_positions(K)] += np.repeat(relaxation.nodal_masses(system), 3)[system.free]  # h = 1 s
+    A.data[diagonal_positions(K)] += np.repeat(nodal_masses(system), 3)[system.free]  # h = 1 s
     r = system.residual(q)[system.free]
-    ropes = [e for e in system.effects if hasattr(e, "stretched_by")]
+    ropes = rope_effects(system)
     return system, ropes, A, r, q
 
 
 def _stretched(system, ropes, q, p):
     dq = np.zeros(system.n_dof)
     dq[system.free] = p
-    return [e.stretched_by(q, dq) for e in ropes]
+    return [stretched_by(e, q, dq) for e in ropes]
 
 
 def _released(system, ropes, q, p):
@@ -37,7 +39,7 @@ def _released(system, ropes, q, p):
     dq[system.free] = p
     out = []
     for e in ropes:
-        n, gap, _, slack = e.linearised(q)
+        n, gap, _, slack = linearised(e, q)
         dd = dq[e.dofs[:, 3:]] - dq[e.dofs[:, :3]]
         out.append(~slack & (gap + np.einsum("ij,ij->i", n, dd) <= 0))
     return out
@@ -49,24 +51,24 @@ def _model_gradient(system, ropes, A, r, q, p, stretched, released):
     g = A @ p + r
     for e, m, off in zip(ropes, stretched, released):
         for mask, sign in ((m, 1.0), (off, -1.0)):
-            ge, values = e.engaged_terms(q, mask)
+            ge, values = engaged_terms(e, q, mask)
             g += sign * (ge[system.free] + system.assemble_free({e: values}) @ p)
     return g
 
 
 def test_settling_on_the_whole_net_minimises_the_step_model(first_step, monkeypatch):
     system, ropes, A, r, q = first_step
-    solver = _SPDSolve("cholesky", system.free.size)
+    solver = SPDSolve("cholesky", system.free.size)
     # one solve without slack ropes: the step stretches some of them and shortens taut ones
     # below their rest length, where the model's springs push
-    p0, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
+    p0, _ = engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
     none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
     assert sum(int(m.sum()) for m in _stretched(system, ropes, q, p0)) >= 10
     assert sum(int(m.sum()) for m in _released(system, ropes, q, p0)) >= 10
     # a patch as large as the net: the local Newton steps solve the step's whole model
-    monkeypatch.setattr(relaxation, "SETTLE_SHARE", 1.0)
-    monkeypatch.setattr(relaxation, "SETTLE_RINGS", 100)
-    p, sets = _settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
+    monkeypatch.setattr(active_set, "SETTLE_SHARE", 1.0)
+    monkeypatch.setattr(active_set, "SETTLE_RINGS", 100)
+    p, sets = settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
     # settled: the step stretches exactly the slack ropes it returns as springs ...
     assert all(np.array_equal(a, b) for a, b in zip(_stretched(system, ropes, q, p), sets))
     # ... and is the minimiser of the convex model, with the taut ropes it releases without springs
@@ -81,12 +83,12 @@ def test_settling_on_the_whole_net_minimises_the_step_model(first_step, monkeypa
 
 def test_a_patch_beyond_the_share_leaves_the_step_as_it_is(first_step):
     system, ropes, A, r, q = first_step
-    solver = _SPDSolve("cholesky", system.free.size)
-    p0, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
+    solver = SPDSolve("cholesky", system.free.size)
+    p0, _ = engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
     none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
     assert sum(int(m.sum()) for m in _stretched(system, ropes, q, p0)) >= 10  # there is something to settle
     # on this small net three rings around the wrong ropes are more than the share of the nodes
-    p, sets = _settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
+    p, sets = settle_slack_set(ropes, NodeGraph(system), A, r, q, p0, none)
     assert p is p0
     assert all(np.array_equal(a, b) for a, b in zip(_stretched(system, ropes, q, p0), sets))
 
@@ -95,16 +97,16 @@ def test_a_patch_beyond_the_share_leaves_the_step_as_it_is(first_step):
 def settled(monkeypatch):
     """For each settling call of a relaxation, whether it changed the step."""
     changed = []
-    original = relaxation._settle_slack_set
+    original = active_set.settle_slack_set
 
     def counting(ropes, graph, A, r, q, p, used, geo=None):
         out = original(ropes, graph, A, r, q, p, used, geo)
         changed.append(out[0] is not p)
         return out
 
-    monkeypatch.setattr(relaxation, "_settle_slack_set", counting)
+    monkeypatch.setattr(active_set, "settle_slack_set", counting)
     # on a net this small three rings around the wrong ropes are a large share of the nodes
-    monkeypatch.setattr(relaxation, "SETTLE_SHARE", 0.5)
+    monkeypatch.setattr(active_set, "SETTLE_SHARE", 0.5)
     return changed
 
 
@@ -112,14 +114,14 @@ def test_relaxation_reaches_the_same_shape_with_and_without_settling(settled):
     system = small_net(n=41, EA=1e5, boundary=True)
     with_it = relax(system)
     assert any(settled), "the relaxation never settled a step: the test does not exercise the settling"
-    without = relax(system, slack_settling=False)
+    without = relax(system, refinements=Refinements(slack_settling=False))
     assert with_it.success and without.success
     assert np.abs(with_it.q - without.q).max() < 1e-7
 
 
 def test_settling_does_not_depend_on_the_front_sweeps(settled):
     system = small_net(n=41, EA=1e5, boundary=True)
-    out = relax(system, front_sweeps=False)
+    out = relax(system, refinements=Refinements(front_sweeps=False))
     assert out.success
     assert any(settled), "without the front sweeps no step was settled"
     assert out.local_steps == 0  # the sweeps stay off
@@ -151,17 +153,17 @@ def test_settling_releases_a_chain_of_barely_taut_ropes(monkeypatch):
     K = system.tangent_free(q)
     K.sort_indices()
     A = K.copy()
-    A.data[_diagonal_positions(K)] += 1e-6 * K.diagonal().mean()
+    A.data[diagonal_positions(K)] += 1e-6 * K.diagonal().mean()
     r = system.residual(q)[system.free]
-    ropes = [e for e in system.effects if hasattr(e, "stretched_by")]
-    assert not ropes[1].is_slack(q).any()
+    ropes = rope_effects(system)
+    assert not is_slack(ropes[1], q).any()
     # a patch around the whole chain, so that only the number of local steps limits the settling
-    monkeypatch.setattr(relaxation, "SETTLE_SHARE", 1.0)
-    monkeypatch.setattr(relaxation, "SETTLE_RINGS", 2 * n)
+    monkeypatch.setattr(active_set, "SETTLE_SHARE", 1.0)
+    monkeypatch.setattr(active_set, "SETTLE_RINGS", 2 * n)
 
     def step():
-        solver = _SPDSolve("cholesky", system.free.size)
-        p, _ = _engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, graph=NodeGraph(system))
+        solver = SPDSolve("cholesky", system.free.size)
+        p, _ = engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, graph=NodeGraph(system))
         return p, _released(system, ropes, q, p)
 
     p, released = step()
@@ -171,6 +173,6 @@ def test_settling_releases_a_chain_of_barely_taut_ropes(monkeypatch):
     g = _model_gradient(system, ropes, A, r, q, p, none, released)
     assert np.linalg.norm(g) < 1e-8 * np.linalg.norm(r)
     # the local steps release the chain a few ropes at a time: eight are not enough
-    monkeypatch.setattr(relaxation, "SETTLE_STEPS", 8)
+    monkeypatch.setattr(active_set, "SETTLE_STEPS", 8)
     _, released = step()
     assert 0 < released[1].sum() < n

@@ -13,7 +13,8 @@ by the sign pattern ``[[K, -K], [-K, K]]``. The second term is the geometric
 stiffness that lets a hanging net carry load transverse to its ropes.
 
 A rope (MRA, Eqs. 3-4) has the same law while taut (``l > L``) and zero force
-and stiffness while slack.
+and stiffness while slack. The ropes' piecewise model that a relaxation step is
+solved in lives with the relaxation (:mod:`shellform.solvers.relaxation.ropes`).
 """
 
 from __future__ import annotations
@@ -190,99 +191,3 @@ class Rope(_AxialMembers):
     def held_measures(self, q):
         # a rope may go slack within a step: its length is not held
         return None
-
-    def is_slack(self, q):
-        """Mask of the ropes not longer than their rest length at ``q``."""
-        return ~self._active(self._geometry(q)[1])
-
-    def linearised(self, q):
-        """The ropes' axial model at ``q``, linear in a step of their end nodes.
-
-        Returns ``(n, gap, k, slack)``: unit direction from the first end node
-        to the second, length minus rest length, axial stiffness ``EA / L``
-        and the mask of the slack ropes. A step ``dd`` of the end-node
-        difference changes a rope's length by ``n . dd`` to first order.
-        """
-        d, length = self._geometry(q)
-        return d / length[:, None], length - self.L, self.EA / self.L, ~self._active(length)
-
-    def stretched_by(self, q, dq, model=None):
-        """Slack ropes that the straight step ``dq`` stretches in the linearised model.
-
-        A slack rope has no stiffness, so a Newton step does not see it; when
-        the step lengthens it past its rest length to first order
-        (``l + n . (dq_b - dq_a) > L``), the rope would resist it. ``model``
-        is ``self.linearised(q)`` when the caller has it already.
-        """
-        n, gap, _, slack = self.linearised(q) if model is None else model
-        dd = self._end_difference(dq)
-        return slack & (gap + np.einsum("ij,ij->i", n, dd) > 0)
-
-    def model_excess(self, q, dq):
-        """Each rope's change of energy along the step ``dq`` less that of the step's model of it.
-
-        The model is the one a relaxation step is solved with: a taut rope's
-        second-order expansion at ``q`` (its pull and its Hessian, axial and
-        geometric stiffness), a slack rope that the step stretches to first
-        order its spring ``1/2 (EA / L) (l - L + n . dd)^2``
-        (:meth:`engaged_terms`), any other slack rope nothing. A positive
-        value is energy the model did not foresee.
-        """
-        n, gap, k, slack = self.linearised(q)
-        dd = self._end_difference(dq)
-        nd = np.einsum("ij,ij->i", n, dd)
-        tension = k * gap
-        geometric = tension / (gap + self.L)
-        taylor = tension * nd + 0.5 * ((k - geometric) * nd**2 + geometric * np.einsum("ij,ij->i", dd, dd))
-        spring = 0.5 * k * np.maximum(gap + nd, 0.0) ** 2
-        return self.member_energy_changes(q, q + dq) - np.where(slack, spring, taylor)
-
-    def switch_model_change(self, q, dq, model=None):
-        """Each rope's change of energy in the step's piecewise model less that in its Taylor model.
-
-        The Taylor model at ``q`` (the tangent and the pull) gives a taut rope
-        its axial spring whichever way the step moves it, and a slack rope
-        nothing. The piecewise model gives every rope the spring
-        ``1/2 (EA / L) (l - L + n . dd)_+^2`` and a taut rope its geometric
-        stiffness as well: the convex model that a relaxation step is solved
-        in once its slack ropes are engaged and settled. The two differ only
-        for ropes that the step switches: ``+1/2 k x^2`` for a slack rope it
-        stretches to ``x = l - L + n . dd > 0``, ``-1/2 k x^2`` for a taut
-        rope it shortens to ``x < 0``. ``model`` is ``self.linearised(q)``
-        when the caller has it already.
-        """
-        n, gap, k, slack = self.linearised(q) if model is None else model
-        dd = self._end_difference(dq)
-        x = gap + np.einsum("ij,ij->i", n, dd)
-        return 0.5 * k * np.where(slack, np.maximum(x, 0.0) ** 2, -np.minimum(x, 0.0) ** 2)
-
-    def engaged_terms(self, q, engaged):
-        """Gradient and Hessian values of slack ropes modelled as taut springs.
-
-        Each rope of the mask ``engaged`` contributes ``1/2 (EA / L) (l + n . dd - L)^2``
-        for a step ``dd`` of its end-node difference: the rope's own energy
-        once the step has made it taut, linearised in its length. It carries no
-        tension at ``q``, so it has no geometric stiffness. Returns the
-        gradient over all DOFs at ``dd = 0`` and Hessian values in the order of
-        :meth:`hessian_pattern` (zero for the other ropes).
-        """
-        members = np.flatnonzero(engaged)
-        f, blocks = self.engaged_blocks(q, members)
-        grad = scatter(self.n_dof, self.dofs[members], f)
-        vals = np.zeros((len(self.L), 36))
-        vals[members] = blocks.reshape(-1, 36)
-        return grad, vals.ravel()
-
-    def engaged_blocks(self, q, members):
-        """:meth:`engaged_terms` of the ropes ``members`` only, at a cost that follows their number.
-
-        Returns ``(f, values)``: the forces on the members' six end-node DOFs,
-        shape (m, 6) (to scatter at ``self.dofs[members]``), and their Hessian
-        values at the :meth:`hessian_entries` of ``members``.
-        """
-        d, length = self._geometry(q, self.dofs[members])
-        n = d / length[:, None]
-        k = self.EA[members] / self.L[members]
-        f = (k * (length - self.L[members]))[:, None] * n
-        K = k[:, None, None] * (n[:, :, None] * n[:, None, :])
-        return np.concatenate([-f, f], axis=1), two_node_blocks(K)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import fields
 from pathlib import Path
 
 import meshio
@@ -24,12 +25,27 @@ from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
 from ..io.mesh import write_mesh
 from ..io.summary import write_json
+from ..solvers.relaxation import START_STATES, Refinements, RelaxationOptions
 from .formfind import (STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, coarse_net_outcome,
                        coarse_net_progress, form_find)
 from .inversion import InvertedShell, invert
 from .lengths import control_lengths, length_statistics
 from .net import HangingNet, hanging_net
 from .start import coarse_force_density_start, fit_height_field, surface_start
+
+#: the relaxation options a case's ``solver`` table sets (their defaults are those of RelaxationOptions)
+_OPTION_KEYS = ("scheme", "rtol", "velocity_tol", "acceleration_tol", "max_iterations", "max_wall_time", "damping",
+                "linear_solver", "dt")
+#: the refinements a ``solver`` table may switch (to measure their gain; all on by default)
+_REFINEMENT_KEYS = tuple(f.name for f in fields(Refinements))
+
+
+def _solver_defaults() -> dict:
+    """The ``solver`` table's defaults, from :class:`RelaxationOptions` and :class:`Refinements`."""
+    options, refinements = RelaxationOptions(), Refinements()
+    return {**{k: getattr(options, k) for k in _OPTION_KEYS}, "start": START_STATES[0],
+            **{k: getattr(refinements, k) for k in _REFINEMENT_KEYS}}
+
 
 DEFAULTS = {
     "name": "mra",
@@ -38,11 +54,7 @@ DEFAULTS = {
     "ropes": {"slack": 0.0, "EA": None, "stiffness_ratio": 1.0e4, "mass_per_length": 1.0, "strain_limit": STRAIN_LIMIT},
     "masses": {"node_mass": 0.0},
     "loads": {"gravity": [0.0, 0.0, -9.81]},
-    "solver": {"scheme": "implicit", "rtol": 1e-6, "velocity_tol": None, "acceleration_tol": None,
-               "max_iterations": None, "max_wall_time": None, "damping": None, "linear_solver": "auto",
-               "dt": None, "start": "auto", "slack_active_set": True,
-               "front_sweeps": True, "factor_correction": True, "slack_settling": True,
-               "step_repair": True},
+    "solver": _solver_defaults(),
     "start": {"type": "flat", "depth": None, "control_heights": None, "coarsening": 4, "n_ctrl": 6,
               "compare_flat": False},
     "lengths": {"tolerance": 0.01, "target": None, "control": False, "n_classes": 3, "rounds": 4},
@@ -107,16 +119,14 @@ def build_net(p: dict, grid: QuadGrid | None = None) -> HangingNet:
 
 
 def _solver_options(p: dict, progress: Callable[[str], None] | None) -> dict:
-    s = dict(p["solver"])
-    opts = {"scheme": s.pop("scheme"), "rtol": s.pop("rtol"), "velocity_tol": s.pop("velocity_tol"),
-            "acceleration_tol": s.pop("acceleration_tol"), "damping": s.pop("damping"),
-            "linear_solver": s.pop("linear_solver"), "dt": s.pop("dt"), "start": s.pop("start"),
-            "slack_active_set": bool(s.pop("slack_active_set")), "front_sweeps": bool(s.pop("front_sweeps")),
-            "factor_correction": bool(s.pop("factor_correction")), "slack_settling": bool(s.pop("slack_settling")),
-            "step_repair": bool(s.pop("step_repair")),
-            "max_wall_time": s.pop("max_wall_time"), "strain_limit": float(p["ropes"]["strain_limit"])}
-    if s.get("max_iterations") is not None:
-        opts["max_iterations"] = int(s["max_iterations"])
+    """The keywords of :func:`~shellform.mra.formfind.form_find` for the case's ``solver`` table."""
+    s = p["solver"]
+    opts = {k: s[k] for k in _OPTION_KEYS}
+    if opts["max_iterations"] is not None:
+        opts["max_iterations"] = int(opts["max_iterations"])
+    refinements = Refinements(**{k: bool(s[k]) for k in _REFINEMENT_KEYS})
+    opts = {"options": RelaxationOptions(**opts, refinements=refinements), "start": s["start"],
+            "strain_limit": float(p["ropes"]["strain_limit"])}
     if progress is not None:
         def cb(info):
             progress(f"  {info.scheme} iteration {info.iteration}: max velocity {info.max_velocity:.3e} m/s, "
@@ -278,7 +288,7 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
     net = build_net(p)
     options = _solver_options(p, progress)
     say(f"MRA case {p['name']!r}: {net.structure.n_nodes} nodes, {len(net.rope_edges)} ropes, "
-        f"{len(net.supports)} suspension points, scheme {options['scheme']}")
+        f"{len(net.supports)} suspension points, scheme {options['options'].scheme}")
     if q0 is None:
         q0, start_note = start_state(p, net, options, progress)
     else:

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ModelError
-from ..solvers.relaxation import START_STATES, RelaxationResult, relax
+from ..solvers.relaxation import START_STATES, RelaxationOptions, RelaxationProgress, RelaxationResult, relax
 from .hypostatic import HypostaticReport, hypostatic_check
 from .net import HangingNet
 
@@ -209,9 +209,11 @@ def coarse_net_outcome(coarse: FormFindingResult, seconds: float) -> str:
             f"after {r.iterations} steps, {seconds:.1f} s")
 
 
-def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "implicit",
+def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: RelaxationOptions | None = None,
               strain_limit: float = STRAIN_LIMIT, start: str = "auto", coarsening: int = 3,
-              progress: Callable[[str], None] | None = None, **relax_options):
+              progress: Callable[[str], None] | None = None,
+              callback: Callable[[RelaxationProgress], bool | None] | None = None,
+              v0: np.ndarray | None = None, **fields):
     """Let the net fall into its hanging shape.
 
     Parameters
@@ -219,8 +221,10 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     net : HangingNet
     q0 : ndarray, optional
         Start state (overrides ``start``).
-    scheme : {"implicit", "rk4", "kinetic"}
-        Relaxation scheme (see :mod:`shellform.solvers.relaxation`).
+    options : RelaxationOptions, optional
+        The relaxation's scheme, tolerances and limits
+        (:class:`~shellform.solvers.relaxation.RelaxationOptions`). Its
+        ``max_wall_time`` limits the whole form finding, the coarse nets included.
     strain_limit : float
         Net ropes strained beyond this at rest are named in an
         :class:`OverstretchWarning` (default 1 %).
@@ -242,10 +246,13 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         ``progress(message)`` receives a line per step of the coarse nets'
         relaxations and one when each is at rest (the full net's steps go to
         ``callback``, whose states have the full net's size).
-    **relax_options
-        Passed to :func:`shellform.solvers.relaxation.relax` (tolerances,
-        damping, callback, ...). A ``max_wall_time`` limits the whole form
-        finding, the coarse nets included.
+    callback : callable, optional
+        The full net's progress callback (:func:`~shellform.solvers.relaxation.relax`).
+    v0 : ndarray, optional
+        Start velocity of the explicit schemes (with ``q0``, to go on along a trajectory).
+    **fields
+        Fields of :class:`~shellform.solvers.relaxation.RelaxationOptions`
+        given one by one (``form_find(net, rtol=1e-9)``): they override those of ``options``.
 
     Returns
     -------
@@ -256,6 +263,9 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
     MechanismError
         When the net is a mechanism the solver cannot handle.
     """
+    options = RelaxationOptions() if options is None else options
+    if fields:
+        options = replace(options, **fields)
     _check_strain_limit(strain_limit)
     report = hypostatic_check(net.structure)
     notes = []
@@ -266,16 +276,15 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         raise ModelError(f"form finding: unknown start {start!r}; expected one of {START_STATES + ('coarse_net',)}")
     prep, coarse = 0.0, None
     system = net.system()
-    by_default = start == "auto" and scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
+    by_default = start == "auto" and options.scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
     if q0 is None and (start == "coarse_net" or by_default):
         from .start import coarse_net_start  # start.py builds on this module
 
         t0 = time.perf_counter()
-        options = {k: v for k, v in relax_options.items() if k not in ("callback", "progress_every")}
-        if progress is not None:
-            options.update(progress=progress, callback=coarse_net_progress(progress))
+        shown = {} if progress is None else {"progress": progress, "callback": coarse_net_progress(progress)}
         try:
-            q0, coarse = coarse_net_start(net, coarsening, system=system, scheme=scheme, **options)
+            q0, coarse = coarse_net_start(net, coarsening, system=system,
+                                          options=replace(options, progress_every=None), **shown)
         except ModelError:
             if not by_default:
                 raise
@@ -290,7 +299,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, scheme: str = "i
         start = "auto"
     # the coarse nets' time counts in the wall time and against its limit, even when their start
     # could not be used
-    res = relax(system, q0, scheme=scheme, start=start, spent_s=prep, **relax_options)
+    res = relax(system, q0, options=options, start=start, v0=v0, spent_s=prep, callback=callback)
     if coarse is not None and q0 is not None:
         res = replace(res, start="coarse_net")
     out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)

@@ -243,7 +243,7 @@ def coarse_shape_start(coarse: FormFindingResult, net: HangingNet, median_strain
 
 
 def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = START_STRAIN, system=None,
-                     **relax_options) -> tuple[np.ndarray | None, FormFindingResult]:
+                     **form_options) -> tuple[np.ndarray | None, FormFindingResult]:
     """Hang the :func:`~shellform.mra.coarsen.coarsened_net` of ``net`` and start ``net`` from its shape.
 
     Parameters
@@ -255,8 +255,9 @@ def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = ST
         Median rope strain of the start (:func:`coarse_shape_start`).
     system : System, optional
         ``net.system()``, if already built.
-    **relax_options
-        Passed to :func:`~shellform.mra.formfind.form_find` for the coarse net.
+    **form_options
+        Passed to :func:`~shellform.mra.formfind.form_find` for the coarse net
+        (``options``, ``progress``, ``callback``).
 
     Returns
     -------
@@ -271,7 +272,7 @@ def coarse_net_start(net: HangingNet, factor: int = 3, median_strain: float = ST
         # a coarse net may have too few free nodes for Eqs. (11)-(12); it only shapes the start
         warnings.simplefilter("ignore", HypostaticWarning)
         warnings.simplefilter("ignore", OverstretchWarning)
-        coarse = form_find(cnet, **relax_options)
+        coarse = form_find(cnet, **form_options)
     return coarse_shape_start(coarse, net, median_strain, system), coarse
 
 

@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 
 from shellform.assembly import build_system  # noqa: E402
 from shellform.mra.membrane import force_density_net, force_density_solve, membrane_centre_deflection  # noqa: E402
-from shellform.solvers.relaxation import relax  # noqa: E402
+from shellform.solvers.relaxation import RelaxationOptions, relax  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REFERENCE = Path(os.environ.get("SHELLFORM_REFERENCE", "/work/shared/reference/published.toml"))
@@ -58,7 +58,7 @@ def main(sizes=(4, 8, 16, 32, 64, 128)) -> dict:
         system = build_system(s)
         # from the flat reference state: the force-density start would already be the
         # answer of the linear comparison below
-        res = relax(system, scheme="implicit", rtol=1e-10, start="reference")
+        res = relax(system, options=RelaxationOptions(scheme="implicit", rtol=1e-10), start="reference")
         w_mra = -res.q[3 * centre + 2]
         w_fd = force_density_solve(n)[n // 2 - 1, n // 2 - 1]
         rows.append({

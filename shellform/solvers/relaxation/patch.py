@@ -18,17 +18,14 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly import _Pattern
-
-
-def _axial(e) -> bool:
-    return hasattr(e, "on_members")
+from ...assembly import _Pattern
+from .ropes import is_axial
 
 
 def patchable(system) -> bool:
     """Whether every internal effect of ``system`` is made of axial members and every load is constant."""
-    return any(_axial(e) for e in system.effects) and all(
-        _axial(e) or (e.is_external and not e.hessian_pattern()[0].size) for e in system.effects)
+    return any(is_axial(e) for e in system.effects) and all(
+        is_axial(e) or (e.is_external and not e.hessian_pattern()[0].size) for e in system.effects)
 
 
 class NodeGraph:
@@ -50,7 +47,7 @@ class NodeGraph:
         self.free_index = np.full(system.n_dof, -1, dtype=np.int64)
         self.free_index[system.free] = np.arange(system.free.size)
         self.n_free_nodes = int(np.count_nonzero(np.bincount(system.free // 3, minlength=self.n_nodes)))
-        axial = [e for e in system.effects if _axial(e)]
+        axial = [e for e in system.effects if is_axial(e)]
         conn = np.concatenate([e.conn for e in axial])
         a, b = conn[:, 0], conn[:, 1]
         n = self.n_nodes
@@ -125,7 +122,7 @@ class Patch:
     """
 
     def __init__(self, system, graph: NodeGraph, nodes: np.ndarray, f_ext: np.ndarray):
-        axial = [e for e in system.effects if _axial(e)]
+        axial = [e for e in system.effects if is_axial(e)]
         members = graph.members_of(nodes)
         ends = np.unique(np.concatenate([e.conn[m].ravel() for e, m in zip(axial, members)] + [nodes]))
         index = np.full(graph.n_nodes, -1, dtype=np.int64)

@@ -21,7 +21,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from .linear import CholeskyFactor, SingularMatrixError
+from ..linear import CholeskyFactor, SingularMatrixError
 from .patch import within_rings
 
 #: an entry has changed when it moved by more than this share of the geometric mean of its two diagonal entries
