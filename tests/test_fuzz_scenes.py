@@ -71,7 +71,7 @@ BAD = ("traceback", "crash", "hang", "nan", "unclear")
 #: bad outcomes found in code outside the scene loading, left out of the assertion: name -> (exception type,
 #: file of the innermost frame, words of the message); each is reproduced by an xfail test below
 KNOWN: dict[str, tuple[str, str, str]] = {
-    "continuation_singular_start": ("SingularMatrixError", "shellform/solvers/continuation.py",
+    "continuation_singular_start": ("SingularMatrixError", "shellform/solvers/continuation",
                                     "the tangent is singular at the starting point"),
 }
 
@@ -806,7 +806,7 @@ VON_MISES_LOOSE_IN_Y = {
 
 @pytest.mark.xfail(reason="continuation_singular_start: trace_path raises SingularMatrixError (a RuntimeError, "
                    "not a ShellformError) when the tangent at the start is singular, e.g. a truss node free to "
-                   "move across the truss's plane; shellform/solvers/continuation.py", strict=False)
+                   "move across the truss's plane; shellform/solvers/continuation", strict=False)
 def test_known_continuation_from_a_singular_start_ends_cleanly(tmp_path):
     from shellform.errors import ShellformError
     from shellform.pipeline import run_scene
