@@ -39,7 +39,7 @@ def _scene_path(arg: str | None) -> Path:
 
 
 def _cmd_run(args) -> int:
-    from .pipeline import run_scene
+    from .analyses import run_scene
     from .scene import load_scene
 
     path = _scene_path(args.scene)

@@ -98,7 +98,7 @@ def expand(raw: dict, params: list[tuple[str, list]], base_dir=None) -> list[tup
 
 def _run_case(data: dict, out_dir: str, base_dir: str) -> dict:
     """Run one scene (in a worker) and return its summary; failures are reported, not raised."""
-    from .pipeline import run_scene
+    from .analyses import run_scene
     from .scene import parse_scene
 
     try:

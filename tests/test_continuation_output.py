@@ -8,7 +8,7 @@ import numpy as np
 from test_continuation_models import H, L, P_CR, truss_load, von_mises
 
 from shellform.io.table import plot_path, read_path_csv, write_path_csv
-from shellform.pipeline import run_continuation_case
+from shellform.analyses import run_continuation_case
 from shellform.solvers.continuation import TABLE_COLUMNS, trace_path
 
 

@@ -5,7 +5,7 @@ from collections import Counter
 import pytest
 
 from shellform.effects import AxialBar, ConstantForce, Rope
-from shellform.pipeline import run_scene
+from shellform.analyses import run_scene
 from shellform.scene import parse_scene
 
 SCENE = {

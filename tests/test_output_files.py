@@ -19,7 +19,7 @@ from shellform.io.checkpoint import save_checkpoint
 from shellform.io.files import LOCK_NAME, OutputError, atomic_target, open_atomic, output_lock, safe_name, write_text
 from shellform.io.mesh import write_mesh
 from shellform.io.table import plot_curve, write_csv
-from shellform.pipeline import run_continuation_case, run_scene
+from shellform.analyses import run_continuation_case, run_scene
 from shellform.scene import parse_scene
 
 from test_continuation_models import von_mises
@@ -260,12 +260,12 @@ def test_a_long_title_is_cut_and_quick_to_plot(tmp_path):
 
 
 def test_a_plot_that_fails_is_reported_and_the_results_stay(tmp_path, monkeypatch):
-    import shellform.pipeline as pipeline
+    import shellform.analyses.continuation as runner
 
     def broken(*args, **kwargs):
         raise ValueError("drawing failed")
 
-    monkeypatch.setattr(pipeline, "plot_path", broken)
+    monkeypatch.setattr(runner, "plot_path", broken)
     summary = run_scene(parse_scene(_toml(VON_MISES)), tmp_path)
     assert summary["converged"]
     assert any("load_displacement.png" in w and "drawing failed" in w for w in summary["warnings"])
@@ -333,12 +333,12 @@ def test_exit_code_follows_the_last_stage(tmp_path):
 
 
 def test_a_failing_stage_is_recorded_as_failed(tmp_path, monkeypatch):
-    import shellform.pipeline as pipeline
+    import shellform.analyses.continuation as runner
 
     def broken(*args, **kwargs):
         raise RuntimeError("solver crashed")
 
-    monkeypatch.setattr(pipeline, "run_continuation_case", broken)
+    monkeypatch.setattr(runner, "run_continuation_case", broken)
     with pytest.raises(RuntimeError):
         run_scene(_default_scene(), tmp_path)
     s = json.loads((tmp_path / "summary.json").read_text())

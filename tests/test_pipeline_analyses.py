@@ -8,7 +8,7 @@ import pytest
 
 from shellform.errors import SceneError
 from shellform.io.table import read_csv
-from shellform.pipeline import run_scene
+from shellform.analyses import run_scene
 from shellform.scene import build_model, parse_scene
 
 VON_MISES = {
@@ -204,12 +204,12 @@ def test_command_line_resumes_a_relaxation_stopped_by_its_step_budget(tmp_path):
 
 
 def test_command_line_reports_an_interruption(monkeypatch, capsys, tmp_path):
-    import shellform.pipeline
+    import shellform.analyses
     from shellform.cli import main
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(shellform.pipeline, "run_scene", interrupted)
+    monkeypatch.setattr(shellform.analyses, "run_scene", interrupted)
     assert main(["run", "von_mises", "--out", str(tmp_path), "--quiet"]) == 130
     assert "--resume" in capsys.readouterr().err

@@ -22,7 +22,7 @@ import shellform as sf
 from shellform.cli import main
 from shellform.errors import ModelError, SceneError
 from shellform.io.checkpoint import CheckpointMismatch, model_fingerprint
-from shellform.pipeline import run_scene
+from shellform.analyses import run_scene
 from shellform.scene import parse_scene
 from shellform.solvers.continuation import trace_path
 

@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from shellform.errors import SceneError
-from shellform.pipeline import run_scene
+from shellform.analyses import run_scene
 from shellform.scene import parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -146,7 +146,7 @@ def test_bad_key_is_named_with_what_is_allowed(base, path, value, key, words):
     ({**LEGACY_NET, "buckling": {"E": -1.0}}, "buckling.E", "> 0.0"),
 ])
 def test_older_layout_errors_name_the_key_as_written(raw, key, words, tmp_path):
-    from shellform.pipeline import run_scene
+    from shellform.analyses import run_scene
 
     with pytest.raises(SceneError) as info:
         run_scene(parse_scene(copy.deepcopy(raw)), tmp_path)

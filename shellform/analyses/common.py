@@ -1,0 +1,62 @@
+"""What every analysis runner shares: the progress type, model sizes, plots and the final state's files."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+
+from .. import scene as scenes
+from ..io import write_series, write_state
+
+Progress = Callable[[str], None]
+
+
+def quiet(message: str) -> None:
+    pass
+
+
+def model_sizes(structure, system) -> dict:
+    return {
+        "n_nodes": structure.n_nodes,
+        "n_members": int(sum(g.n_members for g in structure.groups)),
+        "n_dof": structure.n_dof,
+        "n_free_dof": system.n_free,
+        "effects": [e.name for e in system.effects],
+    }
+
+
+def plot_or_note(path: Path, draw: Callable[[], Path], files: list, notes: list) -> None:
+    """Draw a plot (``draw()`` writes ``path``); a plot that fails is noted, not raised.
+
+    A plot only pictures results already on disk; failing the run over it,
+    after the analysis, would lose the summary instead.
+    """
+    try:
+        files.append(draw().name)
+    except Exception as exc:  # noqa: BLE001 (whatever Matplotlib raised goes to the summary)
+        notes.append(f"plot {path.name} not drawn: {type(exc).__name__}: {exc}")
+
+
+def write_final_state(scene: dict, out: Path, system, q, lam: float, formats=None) -> list[str]:
+    """The final state in the scene's output formats (``state.<format>``)."""
+    files = []
+    for fmt in formats if formats is not None else scene["output"]["formats"]:
+        path = out / f"state.{fmt}"
+        if fmt == "xdmf":
+            write_series(path, system, [(lam, q, lam)])
+        elif fmt == "3dm":
+            from ..io.rhino import structure_3dm
+
+            structure_3dm(path, system, q)
+        else:
+            write_state(path, system, q, lam)
+        files.append(path.name)
+    return files
+
+
+def build_scene_model(scene: dict, progress: Progress):
+    model = scenes.build_model(scene)
+    if model.imperfection:
+        progress("imperfection: " + ", ".join(f"{k} {v}" for k, v in model.imperfection.items()))
+    return model

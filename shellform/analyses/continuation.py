@@ -1,0 +1,157 @@
+"""Arc-length continuation of a scene: the path, its events and files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+from .. import scene as scenes
+from ..io import write_json, write_series
+from ..io.table import plot_path, write_path_csv
+from ..model import AXES
+from .common import Progress, build_scene_model, plot_or_note, model_sizes, write_final_state
+
+
+def run_continuation_case(
+    system,
+    out_dir,
+    control: str = "load",
+    name: str = "path",
+    progress: Progress | None = None,
+    resume: bool = True,
+    checkpoint_every: int = 10,
+    plot_file: str | None = "",
+    x: str = "displacement",
+    xlabel: str | None = None,
+    ylabel: str | None = None,
+    title: str | None = None,
+    event_x=None,
+    callback=None,
+    **options,
+):
+    """Trace a path and write its files to ``out_dir``.
+
+    Writes ``{name}.csv`` (path table), the force-displacement plot
+    (``plot_file``, default ``{name}.png``; None: no plot), ``{name}_events.json``
+    (outcome and events) and keeps ``{name}_checkpoint.npz``: started again
+    with the same arguments, an interrupted run resumes from its last
+    checkpoint.
+
+    Parameters
+    ----------
+    system : System
+    out_dir : path-like
+        Created if missing.
+    control : {"load", "displacement"}
+    name : str
+        Stem of the file names.
+    progress : callable, optional
+        Receives one line of text per converged point.
+    resume : bool
+        Continue from an existing checkpoint.
+    checkpoint_every : int
+        Steps between checkpoints.
+    x, xlabel, ylabel, title, event_x
+        The plot: abscissa column (a monitor or ``displacement``), labels and
+        the abscissa of an event when ``x`` is a monitor (see
+        :func:`~shellform.io.table.plot_path`).
+    callback : callable, optional
+        Also called with each :class:`~shellform.solvers.continuation.PathPoint`;
+        returning True stops the run.
+    **options
+        Passed to :func:`~shellform.solvers.continuation.trace_path`.
+
+    Returns
+    -------
+    result : ContinuationResult
+    summary : dict
+        JSON-ready outcome, events and file names (also written to
+        ``{name}_events.json``).
+    """
+    from ..solvers.continuation import trace_path
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ck = out / f"{name}_checkpoint.npz"
+
+    def on_point(pt):
+        if progress is not None:
+            progress(
+                f"step {pt.step:4d}  branch {pt.branch}  parameter {pt.parameter: .6e}  load {pt.load: .6e}  "
+                f"displacement {pt.displacement: .6e}  negative eigenvalues {pt.n_negative}  "
+                f"iterations {pt.iterations}"
+            )
+        return callback(pt) if callback is not None else None
+
+    result = trace_path(system, control, callback=on_point, checkpoint=ck, checkpoint_every=checkpoint_every,
+                        resume=resume, **options)
+    files = [write_path_csv(result, out / f"{name}.csv").name]
+    summary = result.summary()
+    summary["files"] = files + [f"{name}_events.json", ck.name]
+    # the outcome is on disk before the plot is drawn
+    write_json(out / f"{name}_events.json", summary)
+    if plot_file is not None:
+        default_y = "load factor" if control == "load" else "reaction conjugate to the prescribed displacement"
+        plots, notes = [], []
+        png = out / (plot_file or f"{name}.png")
+        plot_or_note(png, lambda: plot_path(result, png, x=x, xlabel=xlabel or x, ylabel=ylabel or default_y, title=title,
+                                     event_x=event_x), plots, notes)
+        summary["files"] = files + plots + summary["files"][1:]
+        if notes:
+            summary["warnings"] = notes
+            for note in notes:
+                if progress is not None:
+                    progress(note)
+        write_json(out / f"{name}_events.json", summary)
+    if progress is not None:
+        progress(f"{result.message} ({result.steps} steps, {len(result.events)} events)")
+    return result, summary
+
+
+def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
+    model = build_scene_model(scene, progress)
+    structure, system = model.structure, model.system
+    a = scene["analysis"]
+    c = a["continuation"]
+    control = c["control"]
+    options = dict(
+        max_steps=c["max_steps"], parameter_bounds=(c["parameter_min"], c["parameter_max"]),
+        constraint=c["constraint"], stability=c["stability"], on_bifurcation=c["on_bifurcation"],
+        branch_side=c["branch_side"], rtol=a["rtol"], fixed_lam=a["load_factor"], fixed_mu=a["prescribed"],
+        q0=scenes.start_state(scene, structure),
+    )
+    if c["initial_increment"] is not None:
+        options["initial_increment"] = c["initial_increment"]
+    if c["max_displacement"] is not None:
+        options["max_displacement"] = c["max_displacement"]
+    monitor, event_x = None, None
+    if c["monitor_node"] is not None:
+        monitor = f"u{c['monitor_component']}{c['monitor_node']}"
+        dof = 3 * c["monitor_node"] + AXES[c["monitor_component"]]
+        options["monitors"] = {monitor: dof}
+        event_x = lambda e: e.q[dof] - system.q_ref[dof]  # noqa: E731 (the plot's abscissa of an event)
+
+    progress(
+        f"continuation ({control} control): {structure.n_nodes} nodes, {system.n_free} free DOFs, "
+        f"effects: {', '.join(e.name for e in system.effects)}"
+    )
+    res, path_summary = run_continuation_case(
+        system, out, control, name="path", progress=lambda msg: progress("  " + msg), resume=resume,
+        checkpoint_every=c["checkpoint_every"], plot_file="load_displacement.png", x=monitor or "displacement",
+        xlabel=f"displacement {monitor or ''} [m]".replace("  ", " "),
+        ylabel="load factor" if control == "load" else "reaction conjugate to the prescribed motion [N]",
+        title=scene["title"], event_x=event_x, **options,
+    )
+    for e in res.events:
+        progress(f"  {e.kind} point at parameter {e.parameter:.6g}, load {e.load:.6g} (step {e.step})")
+    lam_of = dict(zip(res.table["step"], res.table["lam"]))
+    write_series(out / "path.xdmf", system, [(step, q, lam_of.get(step, a["load_factor"]))
+                                             for step, q in zip(res.state_steps, res.states)])
+    final = write_final_state(scene, out, system, res.states[-1], lam_of.get(res.state_steps[-1], a["load_factor"]),
+                         [f for f in scene["output"]["formats"] if f != "xdmf"]) if res.states else []
+    summary = {"analysis": "continuation", "converged": bool(res.success), **path_summary,
+               **model_sizes(structure, system)}
+    summary["files"] = path_summary["files"] + ["path.xdmf"] + final
+    if model.imperfection:
+        summary["imperfection"] = model.imperfection
+    return summary
