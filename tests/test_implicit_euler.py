@@ -7,7 +7,7 @@ from shellform.assembly import build_system
 from shellform.errors import ModelError
 from shellform.model import Structure
 from shellform.rods.network import NodePath, RodNetwork, build_rod_system
-from shellform.solvers.implicit_euler import implicit_euler, lumped_mass, relax
+from shellform.solvers.implicit_euler import implicit_euler, lumped_mass, relax_to_rest
 from shellform.solvers.newton import solve_static
 
 
@@ -115,7 +115,7 @@ def test_dynamic_relaxation_reaches_the_static_equilibrium():
     s_b.set_gravity((0.0, 0.0, -9.81))
     system_b = build_rod_system(net_b)
     # critical damping of the first mode is about 2 w1 = 7 / s (per unit rho A)
-    res = relax(system_b, h=0.02, damping=5.0, t_max=50.0, mass=lumped_mass(s_b, net_b), force_tol=1e-9)
+    res = relax_to_rest(system_b, h=0.02, damping=5.0, t_max=50.0, mass=lumped_mass(s_b, net_b), force_tol=1e-9)
     assert res.success, res.message
     assert np.allclose(res.q[: 3 * s.n_nodes], static.q[: 3 * s.n_nodes], atol=1e-7)
     assert max(res.newton_iterations) <= 10

@@ -356,7 +356,7 @@ def implicit_euler(
     return res
 
 
-def relax(
+def relax_to_rest(
     system,
     h: float,
     damping: float,
