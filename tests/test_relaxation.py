@@ -176,41 +176,6 @@ def test_bad_input_is_named():
         relax(system, np.full(9, np.nan), extra_mass=0.1)
 
 
-def test_energy_change_matches_the_potential_and_its_taylor_expansion():
-    from shellform.solvers.relaxation import energy_change
-
-    system = small_net(n=5, boundary=True)
-    q = relax(system, scheme="implicit").q
-    rng = np.random.default_rng(3)
-    dq = np.zeros_like(q)
-    dq[system.free] = rng.normal(size=system.free.size)
-    # a finite change: the member-wise sum equals the difference of the totals
-    big = 1e-2 * dq
-    assert energy_change(system, q, q + big) == pytest.approx(system.energy(q + big) - system.energy(q), rel=1e-9)
-    # a tiny change: the difference of totals is round-off, the member-wise sum follows
-    # the second-order Taylor expansion g.dq + dq.K.dq / 2
-    small = 1e-9 * dq
-    g = system.residual(q)
-    K = system.tangent(q)
-    taylor = g @ small + 0.5 * small @ (K @ small)
-    assert energy_change(system, q, q + small) == pytest.approx(taylor, rel=1e-5)
-
-
-def test_kept_factor_budget_follows_the_measured_cost_ratios_not_the_clock():
-    from shellform.solvers.relaxation import REFACTOR_COST, iteration_budget
-
-    # half the measured refactorisation/iteration ratio at the measured sizes
-    for method, points in REFACTOR_COST.items():
-        for n, ratio in points:
-            assert iteration_budget(method, n) == round(min(max(0.5 * ratio, 5), 60))
-    # constant below the smallest measured size, growing as the last two sizes above the largest
-    (n1, r1), (n2, r2), (n3, r3) = REFACTOR_COST["cholesky"]
-    assert iteration_budget("cholesky", n1 / 30) == iteration_budget("cholesky", n1) == 5
-    growth = np.log(r3 / r2) / np.log(n3 / n2)
-    assert iteration_budget("cholesky", 10 * n3) == round(0.5 * r3 * 10**growth)
-    assert iteration_budget("ldl", 1e8) == 60 and iteration_budget("amg", 10) == 10
-
-
 def test_a_relaxation_takes_the_same_path_whatever_the_clock_says(monkeypatch):
     import time
 
@@ -224,53 +189,3 @@ def test_a_relaxation_takes_the_same_path_whatever_the_clock_says(monkeypatch):
     assert (first.iterations, first.factorizations, first.linear_iterations) == (
         second.iterations, second.factorizations, second.linear_iterations)
     assert np.array_equal(first.q, second.q)
-
-
-def test_old_factor_is_tried_only_while_it_tends_to_work():
-    from scipy.sparse import diags
-
-    from shellform.solvers.relaxation.linalg import SPDSolve
-
-    rng = np.random.default_rng(3)
-    n = 200
-    main = 4.0 + rng.random(n)
-    A = diags([-np.ones(n - 1), main, -np.ones(n - 1)], [-1, 0, 1], format="csr")
-    B = diags([-np.ones(n - 1), main * 10.0 ** rng.uniform(0, 4, n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
-    b = rng.standard_normal(n)
-    # the rate alone, without the correction on the changed rows (here every row changes)
-    solver = SPDSolve("cholesky", n, cg_max=2, correct=False)
-
-    def attempted(M):
-        before = solver.cg_iterations
-        x = solver.solve(M, b, 1e-10)
-        assert np.linalg.norm(M @ x - b) <= 1e-8 * np.linalg.norm(b)  # right in every path
-        return solver.cg_iterations > before
-
-    assert not attempted(A)  # nothing to try yet
-    # A's factor does not solve B in two iterations, nor B's A: the rate drops below one half
-    assert attempted(B) and attempted(A)
-    assert solver.success_rate < 0.5
-    # so the next three solves refactorise at once, and the fourth tries again
-    assert [attempted(M) for M in (B, A, B, B)] == [False, False, False, True]
-    # the same matrix again: the attempt converges and the rate recovers
-    for _ in range(3):
-        assert attempted(B)
-    assert solver.success_rate > 0.5 and solver.factorizations == 6
-
-
-def test_line_search_bisects_when_the_slope_does_not_grow_along_the_step():
-    # At round-off level the potential can rise at the full step while its slope there
-    # equals the slope at the start; the secant then has no root and the search bisects.
-    from shellform.solvers.relaxation.line_search import line_search
-
-    calls = []
-
-    def at(a):
-        calls.append(a)
-        if a == 1.0:
-            return 1.0, np.zeros(3), -1.0  # a rise, with the start's slope
-        return -a + a * a, np.zeros(3), -1.0 + 2.0 * a  # phi = -a + a^2 elsewhere
-
-    alpha, dE, r = line_search(at, slope=-1.0, rnorm0=1.0, tiny=False)
-    assert calls == [1.0, 0.5]
-    assert alpha == 0.5 and dE == -0.25 and r is not None

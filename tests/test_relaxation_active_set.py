@@ -176,3 +176,14 @@ def test_settling_releases_a_chain_of_barely_taut_ropes(monkeypatch):
     monkeypatch.setattr(active_set, "SETTLE_STEPS", 8)
     _, released = step()
     assert 0 < released[1].sum() < n
+
+
+def test_slack_active_set_reaches_the_same_shape():
+    # a rim-hung net ends with slack ropes along its rim and taut ones inside
+    system = small_net(n=9, EA=1e6, boundary=True)
+    a = relax(system, rtol=1e-9, refinements=Refinements(slack_active_set=False))
+    b = relax(system, rtol=1e-9)
+    assert a.success and b.success
+    slack = [is_slack(e, b.q) for e in system.effects if e.name == "rope"][0]
+    assert slack.any() and not slack.all()
+    assert np.max(np.abs(a.q - b.q)) < 1e-8

@@ -1,13 +1,10 @@
-"""Start state and linear solver of the implicit relaxation: force-density shape, nested dissection."""
+"""The start state of the implicit relaxation: the force-density shape."""
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from shellform import ModelError, Structure, build_system
-from shellform.solvers.relaxation import Refinements, force_density_start, nested_dissection, relax
-from shellform.solvers.relaxation.ropes import is_slack
+from shellform.solvers.relaxation import force_density_start, relax
 
 from test_relaxation import chain, small_net
 
@@ -61,52 +58,6 @@ def test_explicit_scheme_can_start_from_the_force_density_shape():
     res = relax(system, scheme="kinetic", start="force_density", rtol=1e-8)
     assert res.success and res.start == "force_density"
     assert np.max(np.abs(res.q - ref.q)) < 1e-5
-
-
-def grid_laplacian(n):
-    idx = np.arange(n * n).reshape(n, n)
-    e = np.concatenate([np.column_stack([idx[:-1].ravel(), idx[1:].ravel()]),
-                        np.column_stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()])])
-    G = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n * n, n * n))
-    G = (G + G.T).tocsr()
-    X, Y = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    return G, np.column_stack([X.ravel(), Y.ravel()]).astype(float)
-
-
-def test_nested_dissection_is_a_permutation_that_cuts_fill():
-    n = 60
-    G, xy = grid_laplacian(n)
-    order = nested_dissection(G, xy, leaf=16)
-    assert np.array_equal(np.sort(order), np.arange(n * n))
-    A = (sp.diags(np.asarray(G.sum(axis=1)).ravel() + 1.0) - G).tocsc()
-
-    def fill(p):
-        lu = spla.splu(A[p][:, p].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0)
-        return lu.L.nnz + lu.U.nnz
-
-    # row-by-row (banded) order fills about 2 n^3 entries; nested dissection far fewer
-    assert fill(order) < 0.5 * fill(np.arange(n * n))
-
-
-@pytest.mark.parametrize("method", ["nd", "cholesky"])
-def test_other_linear_solvers_reach_the_same_shape(method):
-    system = small_net(n=9, boundary=True)
-    a = relax(system, linear_solver="ldl", rtol=1e-9)
-    b = relax(system, linear_solver=method, rtol=1e-9)
-    assert a.success and b.success
-    assert b.factorizations > 0
-    assert np.max(np.abs(a.q - b.q)) < 1e-8
-
-
-def test_slack_active_set_reaches_the_same_shape():
-    # a rim-hung net ends with slack ropes along its rim and taut ones inside
-    system = small_net(n=9, EA=1e6, boundary=True)
-    a = relax(system, rtol=1e-9, refinements=Refinements(slack_active_set=False))
-    b = relax(system, rtol=1e-9)
-    assert a.success and b.success
-    slack = [is_slack(e, b.q) for e in system.effects if e.name == "rope"][0]
-    assert slack.any() and not slack.all()
-    assert np.max(np.abs(a.q - b.q)) < 1e-8
 
 
 def test_force_density_shape_balances_the_load_with_the_given_densities():

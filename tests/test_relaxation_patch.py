@@ -1,10 +1,10 @@
-"""Newton steps on a patch of a net with the rest held: the patch problem and the sweeps around slack fronts."""
+"""The potential of a net on a patch of nodes with the rest held, and the graph that finds the patch."""
 
 import numpy as np
 import pytest
 
-from shellform.solvers.relaxation import Refinements, energy_change, nodal_masses, patch_steps, relax
-from shellform.solvers.relaxation.patch import NodeGraph, Patch, patchable
+from shellform.solvers.relaxation import Refinements, energy_change, relax
+from shellform.solvers.relaxation.patch import NodeGraph, Patch
 from shellform.solvers.relaxation.ropes import is_slack
 
 from test_relaxation import small_net
@@ -102,45 +102,3 @@ def test_a_patch_of_axial_members_keeps_their_law():
     assert np.allclose(sub.member_results(ql)["axial_force"], rope.member_results(q)["axial_force"][keep])
     with pytest.raises(ValueError, match="no new number"):
         rope.on_members(keep, np.full(25, -1), 3)
-
-
-def test_a_sweep_lowers_the_potential_moves_only_the_patch_and_keeps_the_residual_exact(monkeypatch):
-    system = small_net(n=9)
-    q = _state(system)
-    monkeypatch.setattr(patch_steps, "FRONT_SHARE", 1.0)  # sweep whatever the share of hot nodes
-    graph = NodeGraph(system)
-    free = system.free
-    st_m = np.repeat(nodal_masses(system), 3)[free]
-    st = type("St", (), {"m": st_m, "damping": 0.0})()
-    r = system.residual(q)[free]
-    q1 = q.copy()
-    steps = patch_steps.sweep_fronts(system, graph, st, q1, r, 1e3, system.external_force(), 0.0, 0.0)
-    assert steps >= 1
-    assert energy_change(system, q, q1) < 0
-    acc = lambda res: np.linalg.norm((res / st_m).reshape(-1, 3), axis=1).max()
-    assert acc(r) < acc(system.residual(q)[free])  # the imbalance it sweeps falls
-    assert np.allclose(r, system.residual(q1)[free], rtol=0, atol=1e-9 * np.abs(r).max())
-    # the supports are where they were
-    assert np.array_equal(q1[system.constrained], q[system.constrained])
-
-
-def test_relaxation_with_sweeps_reaches_the_same_shape(monkeypatch):
-    system = small_net(n=12, EA=1e5)
-    plain = relax(system, rtol=1e-9, refinements=Refinements(front_sweeps=False))
-    monkeypatch.setattr(patch_steps, "FRONT_SHARE", 0.3)  # a small net's fronts are a large share of it
-    swept = relax(system, rtol=1e-9)
-    assert plain.success and swept.success, (plain.message, swept.message)
-    assert plain.local_steps == 0 and swept.local_steps > 0
-    assert np.max(np.abs(swept.q - plain.q)) < 1e-7
-    # without the slack-rope active set the sweeps are left out
-    assert relax(system, rtol=1e-9, refinements=Refinements(slack_active_set=False)).local_steps == 0
-
-
-def test_sweeps_are_left_out_where_a_patch_cannot_hold_the_energy():
-    from shellform.rods.network import build_rod_system
-
-    from test_implicit_euler import cantilever
-
-    _, rod = cantilever(n=6)
-    assert not patchable(build_rod_system(rod))  # bending and twist are not axial members
-    assert patchable(small_net(n=4))

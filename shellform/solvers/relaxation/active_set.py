@@ -154,29 +154,7 @@ def settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
     members = graph.members_of(nodes)
     p = p.copy()
     for _ in range(SETTLE_STEPS):
-        # the model's gradient and Hessian on the patch: A holds every taut rope as a spring, so a
-        # stretched slack rope adds one and a released taut rope takes its spring away
-        grad = A_rows @ p + r[rows]
-        blocks, block_dofs = [], []
-        for e, (n, gap, k, slack), m, s in zip(ropes, geo, members, state):
-            on = m[s[m] != ~slack[m]]
-            if not on.size:
-                continue
-            sign = np.where(slack[on], 1.0, -1.0)
-            dd = end_difference(e, dq, e.dofs[on])
-            pull = (sign * k[on] * (gap[on] + np.einsum("ij,ij->i", n[on], dd)))[:, None] * n[on]
-            ld = local[e.dofs[on]]
-            np.add.at(grad, ld[ld >= 0], np.concatenate([-pull, pull], axis=1)[ld >= 0])
-            blocks.append((sign * k[on])[:, None, None] * (n[on][:, :, None] * n[on][:, None, :]))
-            block_dofs.append(ld)
-        H = A_loc
-        if blocks:
-            vals = two_node_blocks(np.concatenate(blocks))
-            ld = np.concatenate(block_dofs)
-            ii = np.repeat(ld, 6, axis=1).ravel()  # row-major 6 x 6 blocks over the members' end DOFs
-            jj = np.tile(ld, (1, 6)).ravel()
-            keep = (ii >= 0) & (jj >= 0)
-            H = H + sp.csr_matrix((vals[keep], (ii[keep], jj[keep])), shape=A_loc.shape)
+        grad, H = _patch_model(ropes, geo, members, state, dq, local, A_rows @ p + r[rows], A_loc)
         try:
             delta = CholeskyFactor(H).solve(-grad)
         except SingularMatrixError:
@@ -194,3 +172,32 @@ def settle_slack_set(ropes, graph, A, r, q, p, used, geo=None):
             break
     return result(p)
 
+
+def _patch_model(ropes, geo, members, state, dq, local, grad, A_loc):
+    """Gradient and Hessian on a patch of the step's model with the ropes in the ``state`` given.
+
+    ``A_loc`` holds every rope taut at ``q`` as a spring, so a stretched slack
+    rope adds one and a released taut rope takes its spring away; ``grad`` is
+    ``A p + r`` on the patch's rows (updated in place), ``local`` the patch
+    row of every DOF (-1 off the patch).
+    """
+    blocks, block_dofs = [], []
+    for e, (n, gap, k, slack), m, s in zip(ropes, geo, members, state):
+        on = m[s[m] != ~slack[m]]
+        if not on.size:
+            continue
+        sign = np.where(slack[on], 1.0, -1.0)
+        dd = end_difference(e, dq, e.dofs[on])
+        pull = (sign * k[on] * (gap[on] + np.einsum("ij,ij->i", n[on], dd)))[:, None] * n[on]
+        ld = local[e.dofs[on]]
+        np.add.at(grad, ld[ld >= 0], np.concatenate([-pull, pull], axis=1)[ld >= 0])
+        blocks.append((sign * k[on])[:, None, None] * (n[on][:, :, None] * n[on][:, None, :]))
+        block_dofs.append(ld)
+    if not blocks:
+        return grad, A_loc
+    vals = two_node_blocks(np.concatenate(blocks))
+    ld = np.concatenate(block_dofs)
+    ii = np.repeat(ld, 6, axis=1).ravel()  # row-major 6 x 6 blocks over the members' end DOFs
+    jj = np.tile(ld, (1, 6)).ravel()
+    keep = (ii >= 0) & (jj >= 0)
+    return grad, A_loc + sp.csr_matrix((vals[keep], (ii[keep], jj[keep])), shape=A_loc.shape)

@@ -148,7 +148,6 @@ def run_implicit(system, st, options: RelaxationOptions, callback, t0, fd_start=
 def _stage(system, mon, solver, q, lam, a_tol, v_tol, options, graph) -> Stage:
     """The fixed parts of a stage on ``system`` (one stiffness scale) starting at ``q``."""
     st, ref = mon.st, options.refinements
-    free = system.free
     f_ext = system.external_force(lam)
     stage = Stage(system, mon, solver, lam, a_tol, v_tol, options.iteration_limit,
                   rope_effects(system) if ref.slack_active_set else [], graph,
