@@ -1,4 +1,4 @@
-"""Starts from a coarser hanging net: its force densities and its shape carried over, the default start of large nets."""
+"""Starts from a coarser hanging net: its force densities and shape carried over; the default of large nets."""
 
 import time
 from types import SimpleNamespace

@@ -1,4 +1,5 @@
-"""Pseudo-time steps on patches: sweeps around slack fronts, and the full step kept with the patch around the ropes that make it overshoot relaxed."""
+"""Pseudo-time steps on patches: sweeps around slack fronts; a full step kept, the patch around the
+ropes that make it overshoot relaxed from there."""
 
 import numpy as np
 import pytest

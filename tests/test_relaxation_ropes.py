@@ -6,7 +6,8 @@ from fd import fd_gradient, relative_error
 from test_axial_effects import random_members
 
 from shellform.effects import Rope
-from shellform.solvers.relaxation.ropes import engaged_terms, linearised, model_excess, stretched_by, switch_model_change
+from shellform.solvers.relaxation.ropes import (engaged_terms, linearised, model_excess, stretched_by,
+                                                switch_model_change)
 
 
 def test_slack_rope_stretched_by_a_step_and_its_engaged_model():

@@ -149,12 +149,14 @@ def _stage(system, mon, solver, q, lam, a_tol, v_tol, options, graph) -> Stage:
     """The fixed parts of a stage on ``system`` (one stiffness scale) starting at ``q``."""
     st, ref = mon.st, options.refinements
     f_ext = system.external_force(lam)
-    stage = Stage(system, mon, solver, lam, a_tol, v_tol, options.iteration_limit,
-                  rope_effects(system) if ref.slack_active_set else [], graph,
-                  ref.slack_settling, ref.front_sweeps, ref.step_repair, f_ext, 0.0,
+    stage = Stage(system=system, mon=mon, solver=solver, lam=lam, a_tol=a_tol, v_tol=v_tol,
+                  max_it=options.iteration_limit, ropes=rope_effects(system) if ref.slack_active_set else [],
+                  graph=graph, settling=ref.slack_settling, sweeps=ref.front_sweeps, repair=ref.step_repair,
+                  f_ext=f_ext, f_scale=0.0,  # set from the first residual of the stage
                   # work of the loads over one ulp of the positions
-                  1e3 * np.finfo(float).eps * float(np.abs(f_ext).sum()) * max(st.L_ref, float(np.abs(q).max())),
-                  1e12 * np.sqrt(st.L_ref / st.g_ref))
+                  e_floor=1e3 * np.finfo(float).eps * float(np.abs(f_ext).sum())
+                  * max(st.L_ref, float(np.abs(q).max())),
+                  h_max=1e12 * np.sqrt(st.L_ref / st.g_ref))
     return stage
 
 

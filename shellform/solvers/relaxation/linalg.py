@@ -76,7 +76,7 @@ class SPDSolve:
     costing 0.35 s beside a 0.8 s factorisation.
 
     The old factor is corrected where the matrix has changed since it was
-    made (``correct``, :class:`~shellform.solvers.local_correction.LocalCorrection`):
+    made (``correct``, :class:`~.local_correction.LocalCorrection`):
     ropes pulled taut or gone slack change their blocks by about their whole
     size, each such rope is an outlying eigenvalue for the old factor alone,
     and an exact solve on the nodes around them takes those out. When the
@@ -94,7 +94,7 @@ class SPDSolve:
     pattern (the ordering and symbolic analysis are done once; QDLDL orders
     by approximate minimum degree). ``"nd"`` factorises with SuperLU in a
     nested-dissection order of the nodes computed once from their
-    coordinates (:func:`nested_dissection`); on the surface-like graph of a
+    coordinates (:func:`~.ordering.nested_dissection`); on the surface-like graph of a
     net its fill grows like ``N log N`` instead of AMD's faster growth.
     Measured on one tangent of a 317 x 317 net (297,675 DOFs): QDLDL 10.9 s,
     SuperLU in nested-dissection order 5.2 s; at 101 x 101 (29,403 DOFs)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ...errors import ModelError
 
 SCHEMES = ("rk4", "kinetic", "implicit")
@@ -108,7 +110,7 @@ class RelaxationOptions:
     scheme: str = "implicit"
     lam: float = 1.0
     mu: float = 0.0
-    extra_mass: object = None
+    extra_mass: float | np.ndarray | None = None
     damping: float | None = None
     rtol: float = 1e-6
     velocity_tol: float | None = None
