@@ -10,6 +10,7 @@ import copy
 import json
 from pathlib import Path
 
+import pytest
 from helpers import all_finite
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -193,3 +194,37 @@ def test_dynamics_scene_with_any_value_replaced(tmp_path, path, value):
 @given(path=st.sampled_from(HEMISPHERE_PATHS), value=st.one_of(weird, st.just(_DELETE)))
 def test_hemisphere_scene_with_any_value_replaced_parses_or_names_the_key(tmp_path, path, value):
     check(replace(HEMISPHERE, path, value), tmp_path, run=False)
+
+
+# entries of number arrays in BASE and the key each is reported under
+ENTRIES = {
+    ("nodes", "coordinates", 1, 2): "nodes.coordinates[1, 2]",
+    ("members", 0, "connectivity", 1, 0): "members[0].connectivity[1, 0]",
+    ("loads", 0, "force", 1): "loads[0].force[1]",
+    ("loads", 0, "nodes", 0): "loads[0].nodes[0]",
+    ("supports", 0, "nodes", 1): "supports[0].nodes[1]",
+    ("gravity", "g", 0): "gravity.g[0]",
+}
+
+
+@settings(max_examples=60, deadline=None)
+@given(path=st.sampled_from(sorted(ENTRIES)), value=st.one_of(
+    st.booleans(), st.text(max_size=5), st.sampled_from(["0.5", "1", "nan", "1e3"]), st.none(),
+    st.lists(st.integers(), max_size=2), st.dictionaries(st.text(max_size=2), st.integers(), max_size=1)))
+def test_a_non_number_inside_a_number_array_is_named_never_coerced(path, value):
+    with pytest.raises(SceneError) as info:
+        parse_scene(replace(BASE, path, value))
+    assert info.value.key == ENTRIES[path]
+    assert "expected" in info.value.problem
+
+
+@settings(max_examples=60, deadline=None)
+@given(path=st.sampled_from(sorted(ENTRIES)), exponent=st.integers(14, 308), sign=st.sampled_from([1, -1]))
+def test_a_number_of_absurd_magnitude_is_named_where_it_stands(path, exponent, sign):
+    # beyond every bound (1e6 m, 1e12 N, 1e9 for node numbers); node numbers are integers
+    value = sign * 10**exponent if path[-2] in ("connectivity", "nodes") or path[-3:-1] == ("connectivity", 1) \
+        else sign * 10.0**exponent
+    with pytest.raises(SceneError) as info:
+        parse_scene(replace(BASE, path, value))
+    assert info.value.key == ENTRIES[path]
+    assert "magnitude" in info.value.problem or "expected" in info.value.problem
