@@ -20,7 +20,7 @@ SceneError also names the key), ``success``, ``failure`` (the summary says it di
 converge), ``too large to run``. Bad: ``traceback`` (any other exception), ``crash`` (the
 worker died), ``hang`` (the time limit), ``nan`` (a non-finite number in the summary),
 ``unclear`` (an error without a message or key). The tests assert that no case is bad,
-except the known ones listed in :data:`KNOWN` (each reproduced by an ``xfail`` test below).
+except the known ones listed in :data:`KNOWN` (each reproduced by an ``xfail`` test).
 
     python -m pytest tests/test_fuzz_scenes.py                        # the fast sample
     python -m pytest -m slow tests/test_fuzz_scenes.py -s             # 2,600 cases, a table of outcomes
@@ -68,8 +68,9 @@ RUN_NODES = 2500
 CLEAN = ("error", "success", "failure", "too large to run")
 BAD = ("traceback", "crash", "hang", "nan", "unclear")
 
-#: bad outcomes found in code outside the scene loading, left out of the assertion: name -> (exception type,
-#: file of the innermost frame, words of the message); each is reproduced by an xfail test below
+#: bad outcomes found in code outside the scene loading, left out of the assertion until fixed: name ->
+#: (exception type, file of the innermost frame, words of the message), each with an xfail test that
+#: reproduces it (none now: the one found, a continuation from a singular start, is a test below)
 KNOWN: dict[str, tuple[str, str, str]] = {}
 
 
