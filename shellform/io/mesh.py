@@ -2,8 +2,12 @@
 
 Members are written as line cells in one block, nodes as points at their
 current position. Point data: ``displacement`` and ``reaction``. Cell data:
-``axial_force``, ``strain``, ``slack`` (1 for a slack rope) and ``group`` (the
-member group number, in the order the groups were added).
+``group`` (the member group number, in the order the groups were added) and
+the member results that the members' effects compute: ``axial_force``,
+``strain``, ``slack`` (1 for a slack rope, 0 for a taut one). A result that no
+group's effect computes is not written at all; cells of a group whose effect
+does not compute it hold NaN (bars are never slack, so their ``slack`` is
+NaN), never a zero that would read as a computed value.
 
 Files are written to a temporary name and moved into place, so an interrupted
 run never leaves a half-written result behind.
@@ -19,21 +23,22 @@ import numpy as np
 
 from .files import atomic_target
 
-CELL_FIELDS = ("axial_force", "strain", "slack", "group")
+#: member results written as cell data where an effect computes them
+RESULT_FIELDS = ("axial_force", "strain", "slack")
 
 
 def _member_fields(system, q) -> dict[str, np.ndarray]:
-    """Cell data of every member group, concatenated in group order."""
+    """Cell data of every member group, concatenated in group order; NaN where a group has no such result."""
     results = system.member_results(q)
-    fields = {k: [] for k in CELL_FIELDS}
-    for gi, g in enumerate(system.structure.groups):
-        res = results.get(g.name, {})
-        m = g.n_members
-        fields["axial_force"].append(res.get("axial_force", np.zeros(m)))
-        fields["strain"].append(res.get("strain", np.zeros(m)))
-        fields["slack"].append(res.get("slack", np.zeros(m, dtype=np.int8)).astype(np.int32))
-        fields["group"].append(np.full(m, gi, dtype=np.int32))
-    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in fields.items()}
+    groups = system.structure.groups
+    fields = {"group": np.concatenate([np.full(g.n_members, gi, dtype=np.int32) for gi, g in enumerate(groups)])
+              if groups else np.zeros(0, dtype=np.int32)}
+    for key in RESULT_FIELDS:
+        if not any(key in results.get(g.name, {}) for g in groups):
+            continue  # computed by no effect: absent
+        fields[key] = np.concatenate([np.asarray(results[g.name][key], dtype=float) if key in results.get(g.name, {})
+                                      else np.full(g.n_members, np.nan) for g in groups])
+    return fields
 
 
 def state_mesh(system, q: np.ndarray, lam: float = 1.0) -> meshio.Mesh:

@@ -217,9 +217,13 @@ def _coarsened(p: dict, factor: int) -> dict:
 
 
 def net_mesh(net: HangingNet, positions, member_fields: dict, point_fields: dict | None = None) -> meshio.Mesh:
-    """Ropes (lines) and grid faces (quads) at ``positions`` with per-rope data."""
+    """Ropes (lines) and grid faces (quads) at ``positions`` with per-rope data.
+
+    The faces carry no rope results: their cells of a rope field are NaN (not
+    computed), never a zero that colours every face as an unloaded, taut rope.
+    """
     cells = [("line", net.rope_edges), ("quad", net.grid.quads)]
-    cell_data = {k: [np.asarray(v, dtype=float), np.zeros(len(net.grid.quads))] for k, v in member_fields.items()}
+    cell_data = {k: [np.asarray(v, dtype=float), np.full(len(net.grid.quads), np.nan)] for k, v in member_fields.items()}
     support = np.zeros(net.structure.n_nodes)
     support[net.supports] = 1.0
     point_data = {"support": support, **(point_fields or {})}
