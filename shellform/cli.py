@@ -83,7 +83,10 @@ def _cmd_schema(args) -> int:
 
 
 def main(argv=None) -> int:
+    from . import __version__
+
     parser = argparse.ArgumentParser(prog="shellform", description="Form finding and post-buckling of gridshells.")
+    parser.add_argument("--version", action="version", version=f"shellform {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene and write results")
     run.add_argument("scene", nargs="?", help="scene TOML file or the name of a built-in scene "

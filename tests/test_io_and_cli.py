@@ -223,3 +223,12 @@ def test_interrupted_continuation_resumes_from_its_checkpoint(tmp_path):
     a, b = read_csv(tmp_path / "a" / "path.csv"), read_csv(tmp_path / "b" / "path.csv")
     assert len(a["step"]) == len(b["step"])
     assert np.allclose(a["lam"], b["lam"], rtol=1e-8, atol=1e-10)
+
+
+def test_version_is_printed(capsys):
+    from shellform import __version__
+    from shellform.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"shellform {__version__}"
