@@ -107,9 +107,21 @@ def _run_case(data: dict, out_dir: str, base_dir: str) -> dict:
         return {"converged": False, "message": f"{type(exc).__name__}: {exc}"}
 
 
-def _scalars(summary: dict) -> dict:
-    """The scalar entries of a summary (the columns of the sweep table)."""
-    return {k: v for k, v in summary.items() if isinstance(v, (bool, int, float, str)) and k != "title"}
+def _scalars(summary: dict, prefix: str = "") -> dict:
+    """The scalar entries of a summary, nested ones by their dotted path (the columns of the sweep table).
+
+    A form-and-buckle case's critical load factor is ``buckling.critical_load_factor``;
+    lists and arrays are left to the case's own files.
+    """
+    out = {}
+    for k, v in summary.items():
+        if not prefix and k == "title":
+            continue
+        if isinstance(v, dict):
+            out.update(_scalars(v, f"{prefix}{k}."))
+        elif isinstance(v, (bool, int, float, str)):
+            out[f"{prefix}{k}"] = v
+    return out
 
 
 def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = None, workers: int = 2,
@@ -177,6 +189,11 @@ def _sweep(cases, params, out: Path, scene_path: Path, base_dir: str, scheduler,
     table = {c: [r.get(c, "") for r in rows] for c in columns}
     write_csv(out / "sweep.csv", table, columns)
     write_json(out / "sweep.json", {"parameters": keys, "wall_time_s": time.perf_counter() - t0, "rows": rows})
+    if plot_y is not None and plot_y not in columns:
+        # the table is written: the work is kept, and the key is refused with the ones there are
+        known = ", ".join(c for c in columns if c != "case")
+        raise SceneError("--plot", f"no entry {plot_y!r} in the case summaries (the table is in {out / 'sweep.csv'}); "
+                         f"known: {known}")
     y = plot_y or next((c for c in ("max_displacement", "rise", "iterations") if c in columns), None)
     first = keys[0]
     if y and all(isinstance(r.get(first), (int, float)) and isinstance(r.get(y), (int, float)) for r in rows):
@@ -185,4 +202,6 @@ def _sweep(cases, params, out: Path, scene_path: Path, base_dir: str, scheduler,
                        f"{scene_path.stem}: {y} against {first}")
         except Exception as exc:  # noqa: BLE001 (the table is written; a plot that fails is only reported)
             progress(f"sweep.png not drawn: {type(exc).__name__}: {exc}")
+    elif y:
+        progress(f"sweep.png not drawn: {y!r} or {first!r} is not a number in every case")
     return rows

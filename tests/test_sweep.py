@@ -54,3 +54,19 @@ def test_a_bad_value_is_refused_before_anything_runs(tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err
     assert "members[0].EA" in err and "sweep case" in err
+
+
+def test_nested_results_are_columns_and_an_unknown_plot_key_is_refused(tmp_path, capsys):
+    from shellform.sweep import _scalars
+
+    assert _scalars({"title": "t", "converged": True, "buckling": {"critical_load_factor": 2.5, "events": [1]}}) == {
+        "converged": True, "buckling.critical_load_factor": 2.5}
+    scene = tmp_path / "truss.toml"
+    scene.write_text(SCENE)
+    out = tmp_path / "sweep"
+    code = main(["sweep", str(scene), "--param", "members[0].EA=1e4,2e4", "--out", str(out), "--quiet",
+                 "--plot", "no_such_entry"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "no_such_entry" in err and "max_displacement" in err  # the key, and the ones there are
+    assert (out / "sweep.csv").exists()  # the work is kept
