@@ -213,3 +213,21 @@ def test_command_line_reports_an_interruption(monkeypatch, capsys, tmp_path):
     monkeypatch.setattr(shellform.analyses, "run_scene", interrupted)
     assert main(["run", "von_mises", "--out", str(tmp_path), "--quiet"]) == 130
     assert "--resume" in capsys.readouterr().err
+
+
+def test_a_shell_weaker_than_its_own_weight_is_flagged(tmp_path):
+    """Rods of 4 mm instead of 30 mm: the found form buckles under a fraction of the weight it was
+    found for, and the summary says so instead of reporting a critical load factor below 1 silently."""
+    from importlib import resources
+
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    raw = tomllib.loads((resources.files("shellform") / "scenes" / "default.toml").read_text())
+    raw["rods"]["radius"] = 0.004
+    summary = run_scene(parse_scene(raw), tmp_path)
+    lam = summary["buckling"]["critical_load_factor"]
+    assert lam is not None and lam < 1.0
+    assert any("less than the weight it was found for" in w for w in summary["warnings"])

@@ -142,8 +142,17 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     }
     summary["converged"] = bool(summary["converged"] and path.success)
     summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf"]
-    if "warnings" in path_summary:
-        summary["warnings"] = summary.get("warnings", []) + path_summary["warnings"]
+    warnings = list(path_summary.get("warnings", []))
+    if first is not None and first.lam < 1.0:
+        warnings.append(f"the shell loses stability under {first.lam:.3g} times its own weight, less than the weight "
+                        f"it was found for ({first.kind} point at load factor {first.lam:.4g} < 1)")
+    elif first is None and path.success:
+        warnings.append(f"no critical point up to load factor {float(np.max(path['lam'])):.4g}: the buckling load "
+                        "lies beyond the traced range (raise analysis.buckling.load_factor_max)")
+    for w in warnings[len(path_summary.get("warnings", [])):]:
+        say(f"warning: {w}")
+    if warnings:
+        summary["warnings"] = summary.get("warnings", []) + warnings
     summary["wall_time_s"] = time.perf_counter() - t0
     stage("finish", "buckling", bool(path.success), path.message, body=summary)
     return summary
