@@ -260,6 +260,7 @@ def _check_bar_rope(scene: dict, base_dir) -> None:
     c = scene["analysis"]["continuation"]
     if scene["analysis"]["type"] == "continuation":
         _check_path_bounds(c)
+        _check_path_parameter(scene, c)
     d = scene["analysis"]["dynamics"]
     if scene["analysis"]["type"] == "dynamics":
         for key in ("time_step", "duration"):
@@ -293,6 +294,21 @@ def _check_path_bounds(c: dict) -> None:
                          "initial_increment")
     if c["initial_increment"] is not None and c["initial_increment"] == 0.0:
         raise SceneError(where + "initial_increment", "must not be zero")
+
+
+def _check_path_parameter(scene: dict, c: dict) -> None:
+    """The path parameter must act on the structure: a scaled load (load control) or a prescribed motion."""
+    include = (scene["effects"] or {}).get("include") or default_effects(scene)
+    if c["control"] == "load":
+        loads = "loads" in include and any(load["scaled"] for load in scene["loads"])
+        weight = "gravity" in include and scene["gravity"] is not None and scene["gravity"]["scaled"]
+        if not (loads or weight):
+            raise SceneError("analysis.continuation.control", "'load' control needs a load that the load factor "
+                             "scales: a [[loads]] entry (scaled = true, the default) or [gravity] scaled = true; "
+                             "or control = 'displacement' with [[prescribed]] motion")
+    elif not scene["prescribed"]:
+        raise SceneError("analysis.continuation.control", "'displacement' control needs a [[prescribed]] motion "
+                         "(nodes and a direction) for its parameter")
 
 
 def _where(scene: dict, i: int, key: str = "") -> str:

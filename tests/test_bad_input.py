@@ -187,6 +187,21 @@ def test_continuation_bounds_are_named_not_left_to_the_solver(continuation, key,
     assert words in info.value.problem
 
 
+@pytest.mark.parametrize("edit, words", [
+    ({"loads": [{"nodes": [1], "force": [0.0, 0.0, -1.0], "scaled": False}]}, "'load' control needs a load"),
+    ({"effects": {"include": ["axial"]}}, "'load' control needs a load"),
+    ({"analysis": {"type": "continuation", "continuation": {"control": "displacement", "parameter_max": 0.1}}},
+     "'displacement' control needs a [[prescribed]] motion"),
+])
+def test_continuation_parameter_must_act_on_the_structure(edit, words):
+    scene = {**copy.deepcopy(TRUSS), "analysis": {"type": "continuation", "continuation": {"parameter_max": 1.0}},
+             **edit}
+    with pytest.raises(SceneError) as info:
+        parse_scene(scene)
+    assert info.value.key == "analysis.continuation.control"
+    assert words in info.value.problem
+
+
 @pytest.mark.parametrize("geometry, key, words", [
     ({"n": 5, "voronoi_length": 0.5}, "geometry.voronoi_length", "joint spacing"),
     ({"n": 9999, "voronoi_length": 1e-6}, "geometry.voronoi_length", "at most 2,000,000"),
