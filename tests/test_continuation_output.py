@@ -44,3 +44,20 @@ def test_run_continuation_case_writes_files_and_resumes(tmp_path):
     res2, _ = run_continuation_case(system, tmp_path, "load", progress=lines2.append, **opts)
     assert res2.n_points == res.n_points and len(lines2) == 1
     assert np.array_equal(res2["lam"], res["lam"])
+
+
+def test_a_step_across_a_critical_point_is_drawn_stable_up_to_it(tmp_path, monkeypatch):
+    """Coarse steps over the von Mises truss's first limit point: the plotted polyline gets the
+    located point inserted, so the stretch before it is solid and only the part after it dashed."""
+    import shellform.io.table as table
+    from test_continuation_models import P_CR, von_mises
+
+    res = trace_path(von_mises("load"), "load", initial_increment=1.2 * P_CR, max_steps=12)
+    limit = res.events_of("limit")[0]
+    seen = {}
+    monkeypatch.setattr(table, "plot_curve", lambda path, x, y, *a, **k: seen.update(x=x, y=y, stable=k["stable"]))
+    table.plot_path(res, tmp_path / "p.png")
+    at = seen["y"].index(limit.load)
+    assert seen["stable"][at] and seen["stable"][at - 1]  # solid up to the limit point
+    assert not seen["stable"][at + 1]  # dashed after it
+    assert len(seen["x"]) == res.n_points + len(res.events)

@@ -100,11 +100,13 @@ def save_figure(fig, path, **kwargs) -> Path:
 
 #: longest text taken from a scene into a plot (a title); the rest is cut
 PLOT_TEXT_LIMIT = 200
+#: critical points named in the list beside a plot (the rest are in the events file)
+MARKS_LISTED = 12
 
 
-def _cut(text) -> str:
+def _cut(text, limit: int = PLOT_TEXT_LIMIT) -> str:
     text = str(text)
-    return text if len(text) <= PLOT_TEXT_LIMIT else text[: PLOT_TEXT_LIMIT - 1] + "\N{HORIZONTAL ELLIPSIS}"
+    return text if len(text) <= limit else text[: limit - 1] + "\N{HORIZONTAL ELLIPSIS}"
 
 
 def plain_title(ax, text: str, width: int = 70, **kwargs) -> None:
@@ -118,7 +120,8 @@ def plain_title(ax, text: str, width: int = 70, **kwargs) -> None:
 
 
 def _save(fig, path: Path) -> Path:
-    return save_figure(fig, path)
+    # "tight": the list of critical points beside the axes is part of the picture
+    return save_figure(fig, path, bbox_inches="tight")
 
 
 def plot_curve(
@@ -187,9 +190,16 @@ def plot_curve(
                 color=colors[b % len(colors)], lw=1.5, label=label, zorder=2)
         start = stop + 1
     ax.plot(x, y, ".", color="k", ms=2.5, zorder=3)
-    for mx, my, label in marks:
+    # marks are numbered on the curve and named in a list beside it, so that many never overlap
+    for k, (mx, my, label) in enumerate(marks):
         ax.plot([mx], [my], "o", mfc="none", mec="red", ms=8, zorder=4)
-        ax.annotate(label, (mx, my), textcoords="offset points", xytext=(5, 5), fontsize=8)
+        ax.annotate(str(k + 1), (mx, my), textcoords="offset points", xytext=(4, 4), fontsize=7, color="red")
+    if marks:
+        shown = [_cut(m[2], 60) for m in marks[:MARKS_LISTED]]
+        if len(marks) > MARKS_LISTED:
+            shown.append(f"... {len(marks) - MARKS_LISTED} more (see the events file)")
+        ax.text(1.02, 1.0, "\n".join(shown), transform=ax.transAxes, va="top", ha="left", fontsize=7,
+                parse_math=False)
     # labels may come from a user too (sweep parameters): shown as typed, like the title
     ax.set_xlabel(_cut(xlabel), parse_math=False)
     ax.set_ylabel(_cut(ylabel), parse_math=False)
@@ -241,11 +251,25 @@ def plot_path(
     plot are not marked).
     """
     table = result.table
+    xs, ys = list(np.asarray(table[x], dtype=float)), list(np.asarray(table[y], dtype=float))
+    stable = list(np.asarray(table["n_negative"]) == 0)
+    branch = list(np.asarray(table["branch"], dtype=int))
+    steps = list(np.asarray(table["step"], dtype=int))
     marks = []
-    for e in result.events:
+    for k, e in enumerate(result.events):
         ex = event_x(e) if event_x is not None else getattr(e, x, None)
         ey = getattr(e, y, None)
-        if ex is not None and ey is not None:
-            marks.append((float(ex), float(ey), f"{e.kind} point"))
-    return plot_curve(path, table[x], table[y], xlabel or x, ylabel or y, title or "", marks=marks,
-                      stable=np.asarray(table["n_negative"]) == 0, branch=table["branch"], reference=reference)
+        if ex is None or ey is None:
+            continue
+        marks.append((float(ex), float(ey), f"{k + 1}: {e.kind} point at {y} {float(ey):.4g}"))
+        # the critical point splits the step it lies in: stable up to it, unstable after it
+        # (a step that crosses it is not drawn dashed from its start)
+        at = next((i for i, st in enumerate(steps) if st == e.step), None)
+        if at is not None and at > 0 and branch[at] == branch[at - 1]:
+            xs.insert(at, float(ex))
+            ys.insert(at, float(ey))
+            stable.insert(at, True)
+            branch.insert(at, branch[at])
+            steps.insert(at, -1)
+    return plot_curve(path, xs, ys, xlabel or x, ylabel or y, title or "", marks=marks,
+                      stable=np.asarray(stable), branch=np.asarray(branch), reference=reference)
