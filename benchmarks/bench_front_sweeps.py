@@ -54,10 +54,12 @@ def _run(name: str, n: int, active: bool, sweeps: bool, out_q) -> None:
         graphs = {}
 
         def forced(system, *args):
+            # one graph per net (a coarse net first, on large nets): the stages' stiffer copies share its structure
             stage = stage_of(system, *args)
-            if "graph" not in graphs:
-                graphs["graph"] = NodeGraph(system) if patchable(system) else None
-            stage.graph = graphs["graph"]
+            key = id(system.structure)
+            if key not in graphs:
+                graphs[key] = NodeGraph(system) if patchable(system) else None
+            stage.graph = graphs[key]
             return stage
 
         implicit._stage = forced
