@@ -126,14 +126,16 @@ def roundoff_level(K_diagonal: np.ndarray, q: np.ndarray) -> float:
 
 
 def check(system, q: np.ndarray, lam: float, r: np.ndarray, rtol: float, atol: float,
-          K_diagonal: np.ndarray | None = None, roundoff_rtol: float = ROUNDOFF_RTOL) -> EquilibriumCheck:
+          K_diagonal: np.ndarray | None = None, roundoff_rtol: float = ROUNDOFF_RTOL,
+          play: tuple[float, float] | None = None) -> EquilibriumCheck:
     """The equilibrium test of state ``q`` with residual ``r`` (all DOFs).
 
     ``K_diagonal`` (the free tangent's diagonal) gives the rounding level; without
     it the rounding level is taken as zero and only the tolerance counts.
+    ``play``: :func:`forces_in_play` of ``q`` when the caller has it already.
     """
     rf = r[system.free]
-    play = forces_in_play(system, q, lam)
+    play = forces_in_play(system, q, lam) if play is None else play
     ext = system.external_force(lam)
     reactions = r[system.constrained]
     scale = max(play[0], float(np.linalg.norm(ext)), float(np.linalg.norm(reactions)))

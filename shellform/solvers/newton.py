@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .equilibrium import ROUNDOFF_RTOL, check
+from .equilibrium import ROUNDOFF_RTOL, check, forces_in_play
 from .linear import LDLFactor, SingularMatrixError, factorize
 from .mechanism import describe_soft_modes
 
@@ -166,8 +166,12 @@ def solve_static(
     norms = [norm]
     n_reg = 0
 
+    in_play = [None, None]  # the state and its forces in play: one evaluation per state, not per test
+
     def test(rr, K=None):
-        return check(system, q, lam, rr, rtol, atol, None if K is None else K.diagonal(), roundoff_rtol)
+        if in_play[0] is not q:
+            in_play[:] = [q, forces_in_play(system, q, lam)]
+        return check(system, q, lam, rr, rtol, atol, None if K is None else K.diagonal(), roundoff_rtol, in_play[1])
 
     def result(success, message, it):
         return StaticResult(
