@@ -257,9 +257,9 @@ class IndentationResult:
         return [s.dD_over_R for s in self.snaps]
 
     @property
-    def max_force(self) -> float:
-        """Largest normalised force along the path."""
-        return float(np.max(self.y)) if self.y.size else float("nan")
+    def max_force(self) -> float | None:
+        """Largest normalised force along the path (None for a path without a point: nothing was computed)."""
+        return float(np.max(self.y)) if self.y.size else None
 
     def summary(self) -> dict:
         return {

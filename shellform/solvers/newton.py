@@ -19,6 +19,7 @@ load steps), at ``10^9`` 35 instead of 7818.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -88,20 +89,63 @@ def _shift_sequence(K, rhs_norm, size, n_shifts=14):
     return [0.0] + [first * 10.0**k for k in range(n_shifts)]
 
 
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Options of :func:`solve_static`.
+
+    Attributes
+    ----------
+    rtol, atol : float
+        Converged when ``|r_free| <= rtol * scale + atol``, with ``scale`` the
+        forces in play (member forces, applied loads and reactions; see
+        :mod:`shellform.solvers.equilibrium`).
+    roundoff_rtol : float
+        Where the residual stalls at the rounding level of the member forces
+        above that tolerance, the state still counts as converged while its
+        largest entry is below this fraction of the largest force in play;
+        otherwise the solve fails and says why.
+    max_iter : int
+        Newton iterations before giving up.
+    merit : {"energy", "residual"}
+        Line-search merit function. ``"residual"`` (half the squared residual
+        norm) finds any equilibrium, stable or not. ``"energy"`` minimises the
+        total potential: directions that do not descend are regularised, so it
+        only finds stable equilibria but copes with slack ropes and mechanisms
+        stabilised by load.
+    linear_solver : {"direct", "amg", "auto"}
+        See :mod:`shellform.solvers.linear`.
+    max_backtracks : int
+        Step halvings of the line search.
+    project : bool
+        When the full Newton step is rejected, also try the trial states
+        moved back onto the linearised lengths of the axial members and the
+        joint gaps (:class:`StretchProjection`) and keep the better ones
+        (see the module docstring).
+    """
+
+    rtol: float = 1e-10
+    atol: float = 1e-12
+    roundoff_rtol: float = ROUNDOFF_RTOL
+    max_iter: int = 100
+    merit: str = "energy"
+    linear_solver: str = "direct"
+    max_backtracks: int = 30
+    project: bool = True
+
+    def __post_init__(self):
+        if self.merit not in ("residual", "energy"):
+            raise ValueError(f"merit must be 'residual' or 'energy', got {self.merit!r}")
+
+
 def solve_static(
     system,
     q0: np.ndarray | None = None,
     lam: float = 1.0,
     mu: float = 0.0,
-    rtol: float = 1e-10,
-    atol: float = 1e-12,
-    roundoff_rtol: float = ROUNDOFF_RTOL,
-    max_iter: int = 100,
-    merit: str = "energy",
-    linear_solver: str = "direct",
-    max_backtracks: int = 30,
-    project: bool = True,
+    *,
+    options: NewtonOptions | None = None,
     callback=None,
+    **overrides,
 ) -> StaticResult:
     """Find ``q`` with ``r(q, lam)[free] = 0`` by Newton's method.
 
@@ -116,41 +160,23 @@ def solve_static(
         Load factor multiplying the scaled loads.
     mu : float
         Prescribed-displacement parameter.
-    rtol, atol : float
-        Converged when ``|r_free| <= rtol * scale + atol``, with ``scale`` the
-        forces in play (member forces, applied loads and reactions; see
-        :mod:`shellform.solvers.equilibrium`).
-    roundoff_rtol : float
-        Where the residual stalls at the rounding level of the member forces
-        above that tolerance, the state still counts as converged when its
-        residual is below this fraction of the forces in play; otherwise the
-        solve fails and says why.
-    max_iter : int
-        Newton iterations before giving up.
-    merit : {"energy", "residual"}
-        Line-search merit function. ``"residual"`` (half the squared residual
-        norm) finds any equilibrium, stable or not. ``"energy"`` minimises the
-        total potential: directions that do not descend are regularised, so it
-        only finds stable equilibria but copes with slack ropes and mechanisms
-        stabilised by load.
-    linear_solver : {"direct", "amg", "auto"}
-        See :mod:`shellform.solvers.linear`.
-    project : bool
-        When the full Newton step is rejected, also try the trial states
-        moved back onto the linearised lengths of the axial members and the
-        joint gaps (:class:`StretchProjection`) and keep the better ones
-        (see the module docstring).
+    options : NewtonOptions, optional
+        Tolerances, merit, solver (defaults: :class:`NewtonOptions`).
     callback : callable, optional
         Called as ``callback(iteration, residual_norm)`` after every accepted
         step (progress display).
+    **overrides
+        Any field of :class:`NewtonOptions` by name (``rtol``, ``max_iter``, ...).
 
     Returns
     -------
     StaticResult
     """
     t0 = time.perf_counter()
-    if merit not in ("residual", "energy"):
-        raise ValueError(f"merit must be 'residual' or 'energy', got {merit!r}")
+    names = {f.name for f in dataclasses.fields(NewtonOptions)}
+    if set(overrides) - names:
+        raise TypeError(f"unknown Newton option(s): {sorted(set(overrides) - names)}")
+    o = dataclasses.replace(options or NewtonOptions(), **overrides)
     q = system.state(mu=mu, base=q0)
     if not np.all(np.isfinite(q)):
         bad = int(np.flatnonzero(~np.isfinite(q))[0])
@@ -161,17 +187,16 @@ def solve_static(
         r = system.residual(qq, lam)
         return r, float(np.linalg.norm(r[free]))
 
-    size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
     r, norm = evaluate(q)
     norms = [norm]
     n_reg = 0
-
     in_play = [None, None]  # the state and its forces in play: one evaluation per state, not per test
 
     def test(rr, K=None):
         if in_play[0] is not q:
             in_play[:] = [q, forces_in_play(system, q, lam)]
-        return check(system, q, lam, rr, rtol, atol, None if K is None else K.diagonal(), roundoff_rtol, in_play[1])
+        return check(system, q, lam, rr, o.rtol, o.atol, None if K is None else K.diagonal(), o.roundoff_rtol,
+                     in_play[1])
 
     def result(success, message, it):
         return StaticResult(
@@ -189,8 +214,8 @@ def solve_static(
     eq = test(r)
     if not np.isfinite(norm):
         return result(False, "residual is not finite at the starting state", 0)
-    projection_cache = {}  # the projections of all steps share one symbolic factorisation
-    for it in range(1, max_iter + 1):
+    step = _Stepper(system, lam, o, evaluate)
+    for it in range(1, o.max_iter + 1):
         if eq.converged:
             return result(True, f"converged: {eq.describe()}", it - 1)
         K = system.tangent_free(q)
@@ -201,45 +226,66 @@ def solve_static(
         # drop; once the residual stops falling, no iteration can help
         if eq.near_roundoff and len(norms) >= 2 and norms[-1] > 0.1 * norms[-2]:
             return stalled(it - 1)
-        rf = r[free]
-        phi0 = system.energy(q, lam) if merit == "energy" else 0.5 * norm**2
-        accepted = False
-        singular = True
-        for shift in _shift_sequence(K, norm, size):
-            try:
-                A = K if shift == 0.0 else K + sp.diags(np.full(K.shape[0], shift))
-                p = factorize(A, linear_solver).solve(-rf)
-            except SingularMatrixError:
-                continue
-            singular = False
-            slope = float(rf @ p) if merit == "energy" else -2.0 * phi0
-            if slope >= 0.0:
-                continue  # not a descent direction of the energy: shift further
-            projection = (lambda q=q, p=p: StretchProjection(system, q, p, cache=projection_cache)) if project else None
-            q_try, r_try, norm_try = _line_search(
-                system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks, projection
-            )
-            if q_try is not None:
-                accepted = True
-                n_reg += int(shift > 0.0)
-                break
-        if eq.near_roundoff and (not accepted or not norm_try < norm):
+        taken = step(q, r, norm, K)
+        if eq.near_roundoff and (taken is None or not taken[2] < norm):
             return stalled(it - 1)
-        if not accepted:
-            why = "the tangent is singular even with a large diagonal shift" if singular else (
-                f"no step decreased the {merit} merit, even with a large diagonal shift")
-            soft = (describe_soft_modes(system, K) if singular else "") or "the structure may be a mechanism at this state"
+        if taken is None:
+            why = "the tangent is singular even with a large diagonal shift" if step.singular else (
+                f"no step decreased the {o.merit} merit, even with a large diagonal shift")
+            soft = (describe_soft_modes(system, K) if step.singular else "") or \
+                "the structure may be a mechanism at this state"
             return result(False, f"iteration {it}: {why} ({eq.describe()}); {soft}", it - 1)
-        q, r, norm = q_try, r_try, norm_try
+        q, r, norm = taken
+        n_reg = step.regularised
         norms.append(norm)
         if callback is not None:
             callback(it, norm)
         eq = test(r, K)
     if eq.converged:
-        return result(True, f"converged: {eq.describe()}", max_iter)
+        return result(True, f"converged: {eq.describe()}", o.max_iter)
     if eq.near_roundoff:
-        return stalled(max_iter)
-    return result(False, f"not converged in {max_iter} iterations: {eq.describe()}", max_iter)
+        return stalled(o.max_iter)
+    return result(False, f"not converged in {o.max_iter} iterations: {eq.describe()}", o.max_iter)
+
+
+class _Stepper:
+    """One Newton step with its line search, regularised by diagonal shifts where the tangent asks for it.
+
+    Counts the steps that needed a shift (``regularised``) and remembers whether
+    the last failed step met only singular matrices (``singular``).
+    """
+
+    def __init__(self, system, lam: float, o: NewtonOptions, evaluate):
+        self.system, self.lam, self.o, self.evaluate = system, lam, o, evaluate
+        self.size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
+        self.cache = {}  # the projections of all steps share one symbolic factorisation
+        self.regularised = 0
+        self.singular = False
+
+    def __call__(self, q, r, norm, K):
+        """``(q, r, |r|)`` after the step, or None when no shift gives an acceptable one."""
+        system, o = self.system, self.o
+        rf = r[system.free]
+        phi0 = system.energy(q, self.lam) if o.merit == "energy" else 0.5 * norm**2
+        self.singular = True
+        for shift in _shift_sequence(K, norm, self.size):
+            try:
+                A = K if shift == 0.0 else K + sp.diags(np.full(K.shape[0], shift))
+                p = factorize(A, o.linear_solver).solve(-rf)
+            except SingularMatrixError:
+                continue
+            self.singular = False
+            slope = float(rf @ p) if o.merit == "energy" else -2.0 * phi0
+            if slope >= 0.0:
+                continue  # not a descent direction of the energy: shift further
+            projection = (lambda q=q, p=p: StretchProjection(system, q, p, cache=self.cache)) if o.project else None
+            q_try, r_try, norm_try = _line_search(
+                system, q, p, self.lam, o.merit, phi0, slope, norm, self.evaluate, o.max_backtracks, projection
+            )
+            if q_try is not None:
+                self.regularised += int(shift > 0.0)
+                return q_try, r_try, norm_try
+        return None
 
 
 def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks, projection=None):

@@ -25,14 +25,14 @@ def case_hemisphere(out, ns=PAPER_N, voronoi_length: float = 1.0e-3) -> CaseResu
         forces = []
         for n in ns:
             run = indentation_case(n, mode, voronoi_length=voronoi_length)
-            forces.append(run["max_force"])
+            forces.append(np.nan if run["max_force"] is None else run["max_force"])  # no path: the fit fails the check
             for k, row in enumerate(run["comparison"]):
                 computed = np.nan if row["computed"] is None else row["computed"]
                 res.checks.append(Check(f"mode {mode}, n = {n}: snap {k + 1} dD/R", computed, row["published"],
                                         TOLERANCE, relative=False, source=SOURCE))
             extra = run["thresholds"][len(PUBLISHED[mode]["snap_dD_over_R"]):]
             notes.append(f"mode {mode}, n = {n}: {run['n_dof']} DOFs, {run['total_s']:.0f} s, "
-                         f"max force {run['max_force']:.1f}"
+                         + (f"max force {run['max_force']:.1f}" if run["max_force"] is not None else "no path point")
                          + (f", further snaps at {', '.join(f'{t:.3f}' for t in extra)}" if extra else ""))
             fig = out / f"hemisphere_mode{mode}_n{n}.png"
             x, y = np.asarray(run["curve"]["x"]), np.asarray(run["curve"]["y"])
