@@ -41,6 +41,8 @@ from shellform.gridshell.study import (  # noqa: E402
     construction_case,
     indentation_case,
 )
+from shellform.io.files import write_text  # noqa: E402
+from shellform.io.table import save_figure  # noqa: E402
 
 RUNS = HERE / "runs"
 NS = (5, 7, 9, 11)
@@ -67,7 +69,7 @@ def run_indentation(n, mode, dl_mm, force=False, **kw):
     out = indentation_case(n, mode, voronoi_length=dl_mm * 1e-3, snapshots=snaps,
                            render_path=HERE / f"configurations_mode{mode}_n{n}.png" if snaps else None, **kw)
     out["key"] = k
-    path.write_text(json.dumps(out))
+    write_text(path, json.dumps(out))
     log(f"  {k}: thresholds {np.round(out['thresholds'], 3).tolist()}, {out['total_s']:.1f} s, {out['n_dof']} DOFs")
     return out
 
@@ -78,7 +80,7 @@ def run_route(n, dl_mm, force=False):
         return json.loads(path.read_text())
     log(f"routes n={n} dl={dl_mm} mm")
     out = construction_case(n, voronoi_length=dl_mm * 1e-3)
-    path.write_text(json.dumps(out))
+    write_text(path, json.dumps(out))
     log(f"  max distance {out['max_node_distance_over_R']:.2e} R")
     return out
 
@@ -166,7 +168,7 @@ def figure_curves(runs_by_n, mode, path):
         ax.set_xlim(0, 2)
     np.atleast_1d(axes)[0].set_ylabel(r"$-\sum F_z R^2/EI$")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -188,7 +190,7 @@ def figure_trends(main, path):
     a.legend()
     b.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -212,7 +214,7 @@ def figure_convergence(conv, path_curves, path_cost):
     for ax in axes[:, 0]:
         ax.set_ylabel(r"$-\sum F_z R^2/EI$")
     fig.tight_layout()
-    fig.savefig(path_curves, dpi=110)
+    save_figure(fig, path_curves, dpi=110)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -231,7 +233,7 @@ def figure_convergence(conv, path_curves, path_cost):
     ax.set_ylabel(r"largest threshold error $|\Delta D/R - $published$|$")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path_cost, dpi=110)
+    save_figure(fig, path_cost, dpi=110)
     plt.close(fig)
 
 
@@ -270,7 +272,7 @@ def figure_construction(n, path):
     ax3.set_title("Chebyshev net on the hemisphere")
     ax3.set_axis_off()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -512,7 +514,7 @@ def report(dense_ns):
         lines.append("")
 
     lines += ["## Notes", ""] + NOTES + [""]
-    (HERE / "report.md").write_text("\n".join(lines))
+    write_text(HERE / "report.md", "\n".join(lines))
     summary = {
         "case": "hemisphere",
         "source": SOURCE,
@@ -528,7 +530,7 @@ def report(dense_ns):
         "convergence": convergence,
         "sensitivity": [{"mode": m, "imperfection": i, "seed": s, "joints": j, **_brief(r)} for m, i, s, j, r in sens],
     }
-    (HERE / "validation.json").write_text(json.dumps(summary, indent=1))
+    write_text(HERE / "validation.json", json.dumps(summary, indent=1))
     log(f"report: {HERE / 'report.md'} ({n_pass}/{len(checks)} thresholds pass)")
 
 

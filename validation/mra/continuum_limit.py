@@ -38,6 +38,8 @@ import numpy as np  # noqa: E402
 from shellform.assembly import build_system  # noqa: E402
 from shellform.mra.membrane import force_density_net, force_density_solve, membrane_centre_deflection  # noqa: E402
 from shellform.solvers.relaxation import RelaxationOptions, relax  # noqa: E402
+from shellform.io.files import write_text  # noqa: E402
+from shellform.io.table import save_figure  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REFERENCE = Path(os.environ.get("SHELLFORM_REFERENCE", "/work/shared/reference/published.toml"))
@@ -76,7 +78,7 @@ def main(sizes=(4, 8, 16, 32, 64, 128)) -> dict:
         "continuum_fem": w_fem, "continuum_fem_time_s": fem_time, "analytic_coefficient": coeff,
         "fem_vs_analytic": abs(w_fem - coeff) / coeff, "observed_order": float(order), "nets": rows,
     }
-    (out / "continuum_limit.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_text(out / "continuum_limit.json", json.dumps(summary, indent=2) + "\n")
 
     fig, ax = plt.subplots(figsize=(5.5, 4.0))
     ax.loglog(h, err, "o-", label="MRA net (implicit relaxation)")
@@ -89,7 +91,7 @@ def main(sizes=(4, 8, 16, 32, 64, 128)) -> dict:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "continuum_limit.png", dpi=150)
+    save_figure(fig, out / "continuum_limit.png", dpi=150)
     print(f"continuum (scikit-fem P2): {w_fem:.8f}; analytic coefficient {coeff}; observed order {order:.2f}")
     return summary
 

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import csv
+import io
 from collections.abc import Callable, Sequence
 from pathlib import Path
+
+from shellform.io.files import write_text
 
 OUT = Path(__file__).parent / "results"
 
@@ -20,13 +23,12 @@ def fmt(spec: str) -> Callable[[object], str]:
 def write_results(stem: str, rows: Sequence[dict], title: str, intro: str, columns: Sequence[Column]) -> None:
     """Write ``results/<stem>.csv`` (every key of the rows) and ``results/<stem>.md`` (the chosen columns)."""
     OUT.mkdir(exist_ok=True)
-    with open(OUT / f"{stem}.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    with open(OUT / f"{stem}.md", "w") as f:
-        f.write(f"# {title}\n\n{intro}\n\n")
-        f.write("| " + " | ".join(c[0] for c in columns) + " |\n")
-        f.write("|" + "|".join("---:" if c[3] else "---" for c in columns) + "|\n")
-        for r in rows:
-            f.write("| " + " | ".join(c[2](r[c[1]]) for c in columns) + " |\n")
+    table = io.StringIO()
+    w = csv.DictWriter(table, fieldnames=list(rows[0]), lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    write_text(OUT / f"{stem}.csv", table.getvalue())
+    lines = [f"# {title}\n\n{intro}\n\n", "| " + " | ".join(c[0] for c in columns) + " |\n",
+             "|" + "|".join("---:" if c[3] else "---" for c in columns) + "|\n"]
+    lines += ["| " + " | ".join(c[2](r[c[1]]) for c in columns) + " |\n" for r in rows]
+    write_text(OUT / f"{stem}.md", "".join(lines))
