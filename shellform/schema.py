@@ -17,6 +17,7 @@ import numpy as np
 
 from .errors import SceneError
 from .mra.formfind import COARSE_START_NODES
+from .solvers.relaxation.options import SCHEMES, Refinements, RelaxationOptions
 
 _REQUIRED = object()
 
@@ -594,43 +595,46 @@ SUPPORTS = Table(
     },
 )
 
+# the relaxation's defaults are the solver's own, written once in its options
+_RELAX, _REFINE = RelaxationOptions(), Refinements()
+
 RELAXATION = Table(
     fill_defaults=True,
     doc="MRA form finding by dynamic relaxation (analysis 'mra' and 'form_and_buckle'). Also read from a "
         "top-level [solver] table.",
     keys={
         "scheme": Key("str", "Relaxation scheme: pseudo-transient Newton (fast), the paper's explicit RK4, or "
-                      "leapfrog with kinetic damping.", default="implicit", choices=("implicit", "rk4", "kinetic")),
+                      "leapfrog with kinetic damping.", default=_RELAX.scheme, choices=SCHEMES),
         "rtol": Key("float", "Rest: every nodal acceleration <= rtol g and velocity <= rtol sqrt(g L).",
-                    default=1e-6, **_POS),
-        "velocity_tol": Key("float", "Explicit velocity tolerance (default from rtol).", default=None, unit="m/s",
+                    default=_RELAX.rtol, **_POS),
+        "velocity_tol": Key("float", "Explicit velocity tolerance (default from rtol).", default=_RELAX.velocity_tol, unit="m/s",
                             **_POS),
-        "acceleration_tol": Key("float", "Explicit acceleration tolerance (default from rtol).", default=None,
+        "acceleration_tol": Key("float", "Explicit acceleration tolerance (default from rtol).", default=_RELAX.acceleration_tol,
                                 unit="m/s^2", **_POS),
         "max_iterations": Key("int", "Give up after this many steps (default 500 implicit, 2,000,000 explicit).",
-                              default=None, minimum=1),
-        "max_wall_time": Key("float", "Give up after this many seconds (default: no limit).", default=None, unit="s", **_POS),
-        "damping": Key("float", "Viscous damping per unit mass (default 2 sqrt(g / L)).", default=None, unit="1/s",
+                              default=_RELAX.max_iterations, minimum=1),
+        "max_wall_time": Key("float", "Give up after this many seconds (default: no limit).", default=_RELAX.max_wall_time, unit="s", **_POS),
+        "damping": Key("float", "Viscous damping per unit mass (default 2 sqrt(g / L)).", default=_RELAX.damping, unit="1/s",
                        **_NONNEG),
         "linear_solver": Key("str", "Linear solver of the implicit scheme: 'auto' is 'cholesky' (supernodal "
                              "CHOLMOD); 'ldl' (QDLDL), 'nd' (SuperLU in nested-dissection order), 'amg' (soft nets "
-                             "only) or 'direct'.", default="auto",
+                             "only) or 'direct'.", default=_RELAX.linear_solver,
                              choices=("auto", "cholesky", "ldl", "nd", "amg", "direct")),
         "slack_active_set": Key("bool", "Implicit scheme: solve each step again with the slack ropes it would "
-                                "stretch modelled as taut: about half the steps, each up to three solves.", default=True),
+                                "stretch modelled as taut: about half the steps, each up to three solves.", default=_REFINE.slack_active_set),
         "front_sweeps": Key("bool", "Implicit scheme: after a step that leaves only a few nodes out of balance "
                             "(along the fronts between taut and slack regions), take up to three Newton steps on the "
-                            "nodes within four ropes of them, the rest of the net held.", default=True),
+                            "nodes within four ropes of them, the rest of the net held.", default=_REFINE.front_sweeps),
         "factor_correction": Key("bool", "Implicit scheme: before refactorising the tangent, try conjugate gradients "
                                  "with the kept factorisation corrected by an exact solve on the nodes whose tangent "
-                                 "entries changed (ropes pulled taut or gone slack).", default=True),
+                                 "entries changed (ropes pulled taut or gone slack).", default=_REFINE.factor_correction),
         "slack_settling": Key("bool", "Implicit scheme: when a step gets ropes' slack state wrong (slack ropes it "
                               "stretches outside its active set, taut ones it shortens below their rest length), "
                               "settle them by Newton steps on the step's model over the nodes within three ropes of "
-                              "them (needs slack_active_set).", default=True),
+                              "them (needs slack_active_set).", default=_REFINE.slack_settling),
         "step_repair": Key("bool", "Implicit scheme: when a few ropes make a step of the whole net overshoot, keep "
                            "the full step and relax the nodes within three ropes of them from there instead of "
-                           "shortening the whole step (needs slack_active_set).", default=True),
+                           "shortening the whole step (needs slack_active_set).", default=_REFINE.step_repair),
         "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
                      f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
                      "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "
@@ -638,7 +642,7 @@ RELAXATION = Table(
                      "every third grid line, hung first, interpolated and hung a little deeper.", default="auto",
                      choices=("auto", "reference", "force_density", "coarse_net")),
         "dt": Key("float", "Explicit time step (default 90 % of the stability bound) or first pseudo time step.",
-                  default=None, unit="s", **_POS),
+                  default=_RELAX.dt, unit="s", **_POS),
         "checkpoint_interval": Key("float", "Save the relaxation state to DIR/relaxation_checkpoint.npz at most "
                                    "this often (and when it stops unconverged); `--resume` restarts from it.",
                                    default=5.0, unit="s", **_NONNEG),
