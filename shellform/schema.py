@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import SceneError
 from .mra.formfind import COARSE_START_NODES
-from .solvers.relaxation.options import SCHEMES, Refinements, RelaxationOptions
+from .solvers.relaxation.options import Refinements, RelaxationOptions
 
 _REQUIRED = object()
 
@@ -604,7 +604,7 @@ RELAXATION = Table(
         "top-level [solver] table.",
     keys={
         "scheme": Key("str", "Relaxation scheme: pseudo-transient Newton (fast), the paper's explicit RK4, or "
-                      "leapfrog with kinetic damping.", default=_RELAX.scheme, choices=SCHEMES),
+                      "leapfrog with kinetic damping.", default=_RELAX.scheme, choices=("implicit", "rk4", "kinetic")),
         "rtol": Key("float", "Rest: every nodal acceleration <= rtol g and velocity <= rtol sqrt(g L).",
                     default=_RELAX.rtol, **_POS),
         "velocity_tol": Key("float", "Explicit velocity tolerance (default from rtol).", default=_RELAX.velocity_tol, unit="m/s",
