@@ -40,7 +40,7 @@ from ..rods.network import NodePath, RodNetwork, build_rod_system, circular_sect
 from ..rods.statics import solve_incremental
 from ..solvers.newton import solve_static
 
-#: parameters of the gridshell paper (published.toml, [hemisphere.parameters])
+#: parameters of the gridshell paper (Huang, Qin, Chen, J. Appl. Mech. 89(1) 011005, 2022, DOI 10.1115/1.4052289)
 PAPER = dict(
     radius=0.0764 / 2.0,
     rod_radius=1.0e-3,

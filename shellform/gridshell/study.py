@@ -10,7 +10,8 @@ import numpy as np
 from .hemisphere import PAPER, build_hemisphere, compare_shapes, prestress_by_paths, prestress_on_net
 from .indentation import indentation_system, trace_indentation
 
-#: published.toml [hemisphere.mode_I] and [hemisphere.mode_II]
+#: the snapping thresholds of the gridshell paper, modes I and II (Huang, Qin, Chen, J. Appl. Mech. 89(1)
+#: 011005, 2022, DOI 10.1115/1.4052289)
 PUBLISHED = {
     "I": {"snap_dD_over_R": [1.1, 1.7, 1.9], "pattern_sequence": ["U+", "O+", "W", "S", "O-", "U-"]},
     "II": {"snap_dD_over_R": [1.50, 1.75], "pattern_sequence": ["U+", "O+", "W", "O-", "U-"]},

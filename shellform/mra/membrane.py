@@ -9,7 +9,8 @@ satisfies, in the vertical direction,
 the five-point Laplacian: as ``h -> 0`` it tends to the membrane equation
 ``N laplacian(z) = -p`` with ``N = q`` (rope force ``q h`` per spacing ``h``)
 and ``z = 0`` on the rim, whose square solution has the centre deflection
-``0.0736714 p a^2 / N`` (``published.toml``, ``analytic.membrane_small_slope``).
+``0.0736714 p a^2 / N`` (the series solution on a square,
+:data:`shellform.validation.reference.MEMBRANE_SQUARE_COEFFICIENT`).
 
 This module provides the three pieces of that check:
 

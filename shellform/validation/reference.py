@@ -1,7 +1,7 @@
 """Published and analytic reference values used by the validation cases.
 
-They follow the project's reference table (``published.toml``) and name
-their sources, so that the installed package validates without it.
+Each value names its source: a closed form, or one of the two papers the
+package implements, the MRA paper (A. Manuello Bertetto, J. Melchiorre, L. Sardone, G. C. Marano, "Multi-body rope approach for the form-finding of shape optimized grid shell structures", WCCM-APCOM 2022, DOI 10.23967/wccm-apcom.2022.075) and the gridshell paper (W. Huang, L. Qin, Q. Chen, "Numerical Exploration on Snap Buckling of a Pre-Stressed Hemispherical Gridshell", J. Appl. Mech. 89(1), 011005 (2022), DOI 10.1115/1.4052289).
 """
 
 # symmetric two-bar truss, engineering strain: cos(q0) = cos(alpha)^(1/3), P_cr = 2 EA sin(q0)^3
@@ -15,7 +15,7 @@ CATENARY_TOLERANCE = 5e-3
 # tip (x/L, z/L) for alpha = rho A g L^3 / EI
 CANTILEVER_SELF_WEIGHT = {1.0: (0.9912, -0.1235), 5.0: (0.8467, -0.4959), 10.0: (0.6564, -0.7002),
                           39.24: (0.2871, -0.8934)}
-CANTILEVER_SOURCE = "planar elastica under self-weight (published.toml analytic.cantilever_self_weight)"
+CANTILEVER_SOURCE = "planar elastica under self-weight, integrated to 1e-4 (CANTILEVER_SELF_WEIGHT)"
 CANTILEVER_TOLERANCE = 2e-3  # of L: the reference is given to 1e-4, 40 rod edges are good to ~1e-3
 
 # Euler buckling P_cr = pi^2 EI / (K L)^2
@@ -28,7 +28,7 @@ GREENHILL_TORQUE = 2 * 4.493409457909064
 GREENHILL_SOURCE = "Greenhill twist buckling, clamped ends"
 ROD_BUCKLING_TOLERANCE = 1e-2
 
-# multi-body rope approach (seed 000): rest states of hanging nets
-MRA_SOURCE = "multi-body rope approach, Sec. 3 (published.toml [mra])"
+# multi-body rope approach (the MRA paper, DOI 10.23967/wccm-apcom.2022.075): rest states of hanging nets
+MRA_SOURCE = "multi-body rope approach, Sec. 3 (Manuello Bertetto et al., WCCM-APCOM 2022)"
 MEMBRANE_SQUARE_COEFFICIENT = 0.0736714  # w_max = c p a^2 / N, small-slope membrane on a square
-MEMBRANE_SOURCE = "small-slope membrane, N laplacian(w) = -p (published.toml analytic.membrane_small_slope)"
+MEMBRANE_SOURCE = "small-slope membrane, N laplacian(w) = -p (series solution on a square, MEMBRANE_SQUARE_COEFFICIENT)"

@@ -313,7 +313,7 @@ def report(dense_ns):
 
     lines = ["# Hemispherical gridshell: snap-through under apex indentation", ""]
     lines += [
-        f"Source of the published values: *{SOURCE}* (`published.toml` `[hemisphere.*]`). "
+        f"Source of the published values: *{SOURCE}* (`shellform/gridshell/study.py`, `PUBLISHED`). "
         f"Tolerance on every threshold: {TOLERANCE} in dD/R.",
         "",
         "Model: 2n discrete elastic rods on the Chebyshev net of a hemisphere with 2R = 7.64 cm, "

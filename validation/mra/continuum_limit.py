@@ -9,7 +9,7 @@ force N = q = 1 N/m):
 2. the same nets as a linear force-density problem solved with pyamg;
 3. the continuum membrane N laplacian(w) = -p by scikit-fem (quadratic
    triangles, pyamg-preconditioned CG), checked against the analytic
-   coefficient of published.toml (analytic.membrane_small_slope).
+   coefficient (shellform.validation.reference.MEMBRANE_SQUARE_COEFFICIENT).
 
 Writes ``results/continuum_limit.png`` (centre-deflection error against the
 grid spacing) and ``results/continuum_limit.json``.
@@ -26,7 +26,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # tiny BLAS calls: threads o
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import matplotlib  # noqa: E402
@@ -39,18 +38,16 @@ from shellform.assembly import build_system  # noqa: E402
 from shellform.mra.membrane import force_density_net, force_density_solve, membrane_centre_deflection  # noqa: E402
 from shellform.solvers.relaxation import RelaxationOptions, relax  # noqa: E402
 from shellform.io.files import write_text  # noqa: E402
+from shellform.validation.reference import MEMBRANE_SQUARE_COEFFICIENT  # noqa: E402
 from shellform.io.table import save_figure  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-REFERENCE = Path(os.environ.get("SHELLFORM_REFERENCE", "/work/shared/reference/published.toml"))
 
 
 def main(sizes=(4, 8, 16, 32, 64, 128)) -> dict:
     out = HERE / "results"
     out.mkdir(exist_ok=True)
-    coeff = 0.0736714
-    if REFERENCE.exists():
-        coeff = tomllib.loads(REFERENCE.read_text())["analytic"]["membrane_small_slope"]["square_coefficient"]
+    coeff = MEMBRANE_SQUARE_COEFFICIENT
     t0 = time.perf_counter()
     w_fem = membrane_centre_deflection(refine=7)
     fem_time = time.perf_counter() - t0

@@ -1,6 +1,6 @@
 """What accuracy costs in time: error against Voronoi length for three rod cases.
 
-* self-weight cantilever, alpha = 39.24 (published.toml analytic.cantilever_self_weight):
+* self-weight cantilever, alpha = 39.24 (shellform.validation.reference.CANTILEVER_SELF_WEIGHT):
   error of the tip position |x_tip - x_ref| / L against the planar elastica solved by
   ``scipy.integrate.solve_bvp`` to 1e-10 (the published table has four digits, which
   would floor the error at ~1e-4); the rod is made nearly inextensible (EA L^2 / EI = 1e7);
