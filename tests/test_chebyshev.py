@@ -6,7 +6,7 @@ import pytest
 from shellform.errors import ModelError
 from shellform.geometry.chebyshev import _compass_net, chebyshev_hemisphere
 
-R = 0.0382  # 2R = 7.64 cm (published.toml [hemisphere.parameters])
+R = 0.0382  # 2R = 7.64 cm (the gridshell paper's hemisphere, shellform.gridshell.hemisphere.PAPER)
 
 
 @pytest.fixture(scope="module")

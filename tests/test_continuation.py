@@ -61,7 +61,7 @@ def test_von_mises_load_control_limit_points(vm_load):
     limits = res.events_of("limit")
     assert [e.kind for e in res.events] == ["limit", "limit"]
     upper, lower = limits
-    # published.toml analytic.von_mises_truss: P_cr = 2 EA sin(q0)^3, within 0.5 % (we get far closer)
+    # the von Mises truss in closed form: P_cr = 2 EA sin(q0)^3, within 0.5 % (we get far closer)
     assert abs(upper.parameter - P_CR) / P_CR < 5e-3
     assert abs(upper.parameter - P_CR) / P_CR < 1e-9
     assert abs(lower.parameter + P_CR) / P_CR < 1e-9

@@ -8,8 +8,7 @@ current bar angle (apex height ``L tan(theta)``) the bar strain is
 
     P(theta) = 2 EA sin(theta) (1 - cos(alpha) / cos(theta)),
 
-with the limit point at ``cos(theta)^3 = cos(alpha)`` (published.toml,
-``analytic.von_mises_truss``).
+with the limit point at ``cos(theta)^3 = cos(alpha)``.
 """
 
 from __future__ import annotations
@@ -137,7 +136,7 @@ def braced_critical(EAs=2.0e4):
 
 
 def test_analytic_truss_limit_matches_published_formula():
-    """The closed form used by the tests has its maximum where published.toml says."""
+    """The closed form used by the tests has its maximum where the analytic limit point lies."""
     th = np.linspace(0.0, ALPHA, 200001)
     P = truss_load(th)
     assert abs(P.max() - P_CR) / P_CR < 1e-9

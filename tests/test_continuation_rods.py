@@ -1,7 +1,7 @@
 """Continuation of a planar rod problem: the post-buckled pinned-pinned elastica.
 
 A straight column of discrete elastic rods under an end load bifurcates at the
-Euler load (published.toml ``analytic.euler_buckling``, K = 1); the secondary
+Euler load (pi^2 EI / L^2, K = 1); the secondary
 branch is the elastica, whose closed form in terms of the complete elliptic
 integrals K(m), E(m) with ``m = k^2 = sin^2(alpha / 2)`` (alpha the end slope) is
 

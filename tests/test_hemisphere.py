@@ -11,7 +11,7 @@ from shellform.gridshell.hemisphere import (
     prestress_on_net,
 )
 
-R = 0.0764 / 2  # published.toml [hemisphere.parameters]: 2R = 7.64 cm
+R = 0.0764 / 2  # the gridshell paper's hemisphere: 2R = 7.64 cm
 DL = 4.0e-3  # coarse Voronoi length for the default suite
 
 

@@ -11,7 +11,7 @@ from shellform.gridshell.configurations import classify_configuration
 from shellform.gridshell.indentation import indentation_system, trace_indentation
 from shellform.solvers.stability import count_negative, smallest_eigenpair
 
-# published.toml [hemisphere.mode_I], [hemisphere.mode_II]
+# the gridshell paper's thresholds, modes I and II (shellform.gridshell.study.PUBLISHED)
 MODE_I = [1.1, 1.7, 1.9]
 MODE_II = [1.50, 1.75]
 TOL = 0.1

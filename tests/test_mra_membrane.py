@@ -7,7 +7,7 @@ from shellform.assembly import build_system
 from shellform.mra.membrane import force_density_net, force_density_solve, membrane_centre_deflection
 from shellform.solvers.relaxation import relax
 
-SQUARE_COEFFICIENT = 0.0736714  # published.toml, analytic.membrane_small_slope: w_max = c p a^2 / N
+SQUARE_COEFFICIENT = 0.0736714  # small-slope membrane on a square, w_max = c p a^2 / N (reference.MEMBRANE_SQUARE_COEFFICIENT)
 
 
 @pytest.fixture(scope="module")

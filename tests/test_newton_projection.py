@@ -107,7 +107,7 @@ def test_projection_gives_the_same_equilibrium():
 @pytest.mark.parametrize("axial_ratio", [1e7, 1e9])
 def test_axially_stiff_cantilever_in_three_load_steps(axial_ratio):
     """EA L^2 / EI up to 1e9: every load step converges without halving, at the published tip."""
-    alpha = 39.24  # published.toml analytic.cantilever_self_weight: tip (0.2871, -0.8934)
+    alpha = 39.24  # reference.CANTILEVER_SELF_WEIGHT: tip (0.2871, -0.8934)
     s, net = straight_rod(clamped_stations(40), EA=axial_ratio, EI=1.0, mass_per_length=alpha / G)
     net.clamp(0, "start")
     s.set_gravity((0.0, 0.0, -G))

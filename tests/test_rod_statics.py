@@ -9,7 +9,7 @@ from shellform.rods.statics import solve_incremental
 from shellform.solvers.newton import solve_static
 from shellform.validation.cases_rods import G, euler_column, self_weight_cantilever
 
-# published.toml, analytic.cantilever_self_weight
+# the elastica under self-weight (shellform.validation.reference.CANTILEVER_SELF_WEIGHT)
 CANTILEVER = {1.0: (0.9912, -0.1235), 5.0: (0.8467, -0.4959), 10.0: (0.6564, -0.7002), 39.24: (0.2871, -0.8934)}
 
 

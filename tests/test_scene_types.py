@@ -119,7 +119,7 @@ def test_chain_swings_into_its_hanging_shape(run):
 
 def test_hemisphere_snaps_near_the_published_thresholds(run):
     code, out, summary = run("hemisphere_indentation")
-    # published.toml [hemisphere.mode_I]: 1.1, 1.7, 1.9 (dD/R), tolerance 0.1
+    # the gridshell paper, mode I: 1.1, 1.7, 1.9 (dD/R), tolerance 0.1 (shellform.gridshell.study.PUBLISHED)
     assert len(summary["thresholds_dD_over_R"]) == 3
     assert np.allclose(summary["thresholds_dD_over_R"], [1.1, 1.7, 1.9], atol=0.1)
     table = read_csv(out / "indentation.csv")
