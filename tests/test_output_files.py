@@ -7,6 +7,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from importlib import resources
 from pathlib import Path
 
 import meshio
@@ -24,29 +25,8 @@ from shellform.scene import parse_scene
 
 from test_continuation_models import von_mises
 
-VON_MISES = """
-title = "von Mises truss"
-[nodes]
-coordinates = [[-1.0, 0.0, 0.0], [0.0, 0.0, 0.2], [1.0, 0.0, 0.0]]
-[[members]]
-kind = "bar"
-connectivity = [[0, 1], [1, 2]]
-EA = 1.0e4
-[[supports]]
-nodes = [0, 2]
-[[supports]]
-nodes = [1]
-dofs = "y"
-[[loads]]
-nodes = [1]
-force = [0.0, 0.0, -1.0]
-[analysis]
-type = "continuation"
-[analysis.continuation]
-parameter_max = 40.0
-max_displacement = 0.5
-monitor_node = 1
-"""
+# the built-in scene: the von Mises truss traced through both limit points
+VON_MISES = (resources.files("shellform") / "scenes" / "von_mises.toml").read_text()
 
 
 def _mesh():
