@@ -252,8 +252,11 @@ def _kill_and_resume(tmp_path, scene, started, window, files, seed, rounds=1, vo
     """The files of an uninterrupted run and of a run killed ``rounds`` times and resumed: the same."""
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     # only the killed runs need a process of their own
+    t0 = time.monotonic()
     code = main(["run", str(scene), "--out", str(whole), "--quiet"])
     assert code in (0, 1)
+    # a kill lands within the run: the window is cut to most of what the whole run takes here
+    window = min(window, 0.6 * (time.monotonic() - t0))
     rng = random.Random(seed)
     killed_alive = []
     for k in range(rounds):
@@ -262,7 +265,7 @@ def _kill_and_resume(tmp_path, scene, started, window, files, seed, rounds=1, vo
         else:
             proc = subprocess.Popen(_command(scene, cut, "--resume"), env=ENV, stdout=subprocess.DEVNULL,
                                     stderr=subprocess.DEVNULL)
-            time.sleep(rng.uniform(0.5, window))
+            time.sleep(0.5 + rng.uniform(0.0, window))  # after the start-up of a new process
             killed_alive.append(proc.poll() is None)
             proc.send_signal(signal.SIGKILL)
             proc.wait()
@@ -288,7 +291,8 @@ def _kill_and_resume(tmp_path, scene, started, window, files, seed, rounds=1, vo
 def _continuation_scene(tmp_path, steps=150, every=1) -> Path:
     text = (ROOT / "scenes" / "lattice_dome_imperfect.toml").read_text()
     text = text.replace('file = "../meshes/lattice_dome.obj"', f'file = "{ROOT / "meshes" / "lattice_dome.obj"}"')
-    text = text.replace("max_steps = 150", f"max_steps = {steps}\ncheckpoint_every = {every}")
+    # small steps (at most 10 times the first): the path lasts long enough for a kill to land in it
+    text = text.replace("max_steps = 150", f"max_steps = {steps}\ncheckpoint_every = {every}\ninitial_increment = 0.005")
     scene = tmp_path / "dome.toml"
     scene.write_text(text)
     return scene
