@@ -538,7 +538,7 @@ def member_connectivity(scene: dict) -> list[np.ndarray]:
     return out
 
 
-def support_nodes(scene: dict, nodes: np.ndarray) -> list[np.ndarray]:
+def scene_support_nodes(scene: dict, nodes: np.ndarray) -> list[np.ndarray]:
     """Node numbers of every [[supports]] entry of a bar/rope scene."""
     out = []
     for i, sup in enumerate(scene["supports"]):
@@ -586,7 +586,7 @@ def build_structure(scene: dict, nodes: np.ndarray | None = None) -> Structure:
                 s.add_ropes(conn, m["EA"], m["slack"], m["mass_per_length"], m["rest_length"], name=name)
     if scene["masses"] is not None and scene["masses"]["node_mass"] > 0:
         s.add_point_mass(np.arange(s.n_nodes), scene["masses"]["node_mass"])
-    for i, (sup, at) in enumerate(zip(scene["supports"], support_nodes(scene, np.asarray(nodes)))):
+    for i, (sup, at) in enumerate(zip(scene["supports"], scene_support_nodes(scene, np.asarray(nodes)))):
         with _model_error_as_scene_error(_where(scene, i)):
             s.fix(at, sup["dofs"])
     for i, p in enumerate(scene["prescribed"]):
@@ -629,7 +629,7 @@ def random_forces(structure: Structure, amplitude: float, seed: int) -> np.ndarr
     return f
 
 
-def build_system(scene: dict, structure: Structure) -> System:
+def scene_system(scene: dict, structure: Structure) -> System:
     """A System with exactly the effects the scene lists (or calls for)."""
     from .effects.loads import ConstantForce
 
@@ -689,7 +689,7 @@ def _mode_shape(scene: dict, structure: Structure, system: System) -> tuple[np.n
     from .solvers.stability import critical_modes
 
     imp = scene["imperfection"]
-    q = system.state(base=start_state(scene, structure))
+    q = system.state(base=scene_start_state(scene, structure))
     if imp["load_factor"] is not None:
         res = solve_static(system, q0=q, lam=imp["load_factor"], mu=scene["analysis"]["prescribed"])
         if not res.success:
@@ -705,7 +705,7 @@ def _mode_shape(scene: dict, structure: Structure, system: System) -> tuple[np.n
 def build_model(scene: dict) -> Model:
     """Structure and System of a bar/rope scene, with its imperfection applied."""
     structure = build_structure(scene)
-    system = build_system(scene, structure)
+    system = scene_system(scene, structure)
     imp = scene["imperfection"]
     if imp is None or imp["type"] == "forces":
         note = {} if imp is None else {"type": "forces", "amplitude_N": imp["amplitude"], "seed": imp["seed"]}
@@ -721,10 +721,10 @@ def build_model(scene: dict) -> Model:
     delta = _scaled(delta, imp["amplitude"], "imperfection.amplitude")
     note.update(amplitude_m=imp["amplitude"], max_node_movement_m=float(np.linalg.norm(delta, axis=1).max()))
     structure = build_structure(scene, nodes + delta)
-    return Model(structure, build_system(scene, structure), note)
+    return Model(structure, scene_system(scene, structure), note)
 
 
-def start_state(scene: dict, structure: Structure):
+def scene_start_state(scene: dict, structure: Structure):
     """The start state of a bar/rope analysis (None: the reference)."""
     start = scene["analysis"]["start"]
     if start is None:

@@ -13,7 +13,7 @@ import shellform as sf
 from shellform.cli import main
 from shellform.errors import SceneError
 from shellform.io import write_series, write_state
-from shellform.scene import build_structure, build_system, load_scene, parse_scene
+from shellform.scene import build_structure, load_scene, parse_scene, scene_system
 
 VON_MISES = """
 title = "von Mises truss"
@@ -94,10 +94,10 @@ def test_series_round_trip_through_xdmf(tmp_path):
 def test_scene_builds_only_the_listed_effects():
     scene = parse_scene(__import__("tomllib").loads(VON_MISES))
     structure = build_structure(scene)
-    system = build_system(scene, structure)
+    system = scene_system(scene, structure)
     assert [e.name for e in system.effects] == ["axial", "loads"]
     scene["effects"] = {"include": ["axial"]}
-    assert [e.name for e in build_system(scene, structure).effects] == ["axial"]
+    assert [e.name for e in scene_system(scene, structure).effects] == ["axial"]
 
 
 @pytest.mark.parametrize(
@@ -121,7 +121,7 @@ def test_malformed_scene_names_the_key(tmp_path, edit, key, words):
     path.write_text(edit(VON_MISES))
     with pytest.raises(SceneError) as info:
         scene = load_scene(path)
-        build_system(scene, build_structure(scene))
+        scene_system(scene, build_structure(scene))
     assert info.value.key.replace(" ", "") == key.replace(" ", "")
     assert words in str(info.value)
 

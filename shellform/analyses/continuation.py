@@ -118,7 +118,7 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
         max_steps=c["max_steps"], parameter_bounds=(c["parameter_min"], c["parameter_max"]),
         constraint=c["constraint"], stability=c["stability"], on_bifurcation=c["on_bifurcation"],
         branch_side=c["branch_side"], rtol=a["rtol"], fixed_lam=a["load_factor"], fixed_mu=a["prescribed"],
-        q0=scenes.start_state(scene, structure),
+        q0=scenes.scene_start_state(scene, structure),
     )
     if c["initial_increment"] is not None:
         options["initial_increment"] = c["initial_increment"]

@@ -47,7 +47,7 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
                    3 * d["monitor_node"] + AXES[d["monitor_component"]])
     columns = ["step", "time", "kinetic_energy", "max_displacement"] + ([monitor[0]] if monitor else [])
     history = {c: [] for c in columns}
-    q0 = system.state(base=scenes.start_state(scene, structure))
+    q0 = system.state(base=scenes.scene_start_state(scene, structure))
     t0, v0, step = 0.0, None, 0
     frames = [(0.0, q0.copy(), lam(0.0))]
     ck_path = out / DYNAMICS_CHECKPOINT
@@ -56,7 +56,7 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
     fingerprint = model_fingerprint(system, mass=mass)
     settings = {k: v for k, v in d.items() if k not in ("duration", "checkpoint_interval")}
     settings.update(load_factor=a["load_factor"], prescribed=a["prescribed"], linear_solver=a["linear_solver"],
-                    start=scenes.start_state(scene, structure))
+                    start=scenes.scene_start_state(scene, structure))
     saved = load_checkpoint(ck_path) if resume else None
     if saved is not None:
         if saved["q"].shape != q0.shape:

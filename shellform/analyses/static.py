@@ -20,7 +20,7 @@ def run_static(scene: dict, out: Path, progress: Progress, resume: bool = False)
         f"{system.n_free} free DOFs, effects: {', '.join(e.name for e in system.effects)}"
     )
     res = solve_static(
-        system, q0=scenes.start_state(scene, structure), lam=a["load_factor"], mu=a["prescribed"], rtol=a["rtol"],
+        system, q0=scenes.scene_start_state(scene, structure), lam=a["load_factor"], mu=a["prescribed"], rtol=a["rtol"],
         max_iter=a["max_iterations"], merit=a["merit"], linear_solver=a["linear_solver"],
         callback=lambda it, norm: progress(f"  iteration {it:3d}  |r| = {norm:.3e}"),
     )
