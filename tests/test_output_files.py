@@ -97,7 +97,7 @@ def test_the_continuation_checkpoint_does_not_write_through_a_planted_symlink(tm
     # the fixed temporary name an earlier version used
     (out / "path_checkpoint.npz.tmp.npz").symlink_to(victim)
     (out / "path_checkpoint.npz").symlink_to(victim)
-    res, _ = run_continuation_case(von_mises("load"), out, "load", plot_file=None, checkpoint_every=1,
+    res, _ = run_continuation_case(von_mises("load"), out, "load", plot=None, checkpoint_every=1,
                                    initial_increment=3.0, max_steps=5, resume=False)
     assert victim.read_text() == "keep me"
     assert not (out / "path_checkpoint.npz").is_symlink()

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-
 
 from .. import scene as scenes
 from ..io import write_json, write_series
@@ -12,27 +13,47 @@ from ..model import AXES
 from .common import Progress, build_scene_model, plot_or_note, model_sizes, write_final_state
 
 
+@dataclass(frozen=True)
+class PathPlot:
+    """The force-displacement plot of a traced path (see :func:`~shellform.io.table.plot_path`).
+
+    Attributes
+    ----------
+    file : str
+        File name in the output folder (default ``{name}.png``).
+    x : str
+        Abscissa: a path-table column (a monitor or ``displacement``).
+    xlabel, ylabel, title : str, optional
+        Labels (defaults: the column, the control's load, none).
+    event_x : callable, optional
+        ``event_x(event)``: the abscissa of an event when ``x`` is a monitor.
+    """
+
+    file: str = ""
+    x: str = "displacement"
+    xlabel: str | None = None
+    ylabel: str | None = None
+    title: str | None = None
+    event_x: Callable | None = None
+
+
 def run_continuation_case(
     system,
     out_dir,
     control: str = "load",
+    *,
     name: str = "path",
     progress: Progress | None = None,
     resume: bool = True,
     checkpoint_every: int = 10,
-    plot_file: str | None = "",
-    x: str = "displacement",
-    xlabel: str | None = None,
-    ylabel: str | None = None,
-    title: str | None = None,
-    event_x=None,
+    plot: PathPlot | None = PathPlot(),
     callback=None,
     **options,
 ):
     """Trace a path and write its files to ``out_dir``.
 
     Writes ``{name}.csv`` (path table), the force-displacement plot
-    (``plot_file``, default ``{name}.png``; None: no plot), ``{name}_events.json``
+    (``plot``; None: no plot), ``{name}_events.json``
     (outcome and events) and keeps ``{name}_checkpoint.npz``: started again
     with the same arguments, an interrupted run resumes from its last
     checkpoint.
@@ -51,10 +72,8 @@ def run_continuation_case(
         Continue from an existing checkpoint.
     checkpoint_every : int
         Steps between checkpoints.
-    x, xlabel, ylabel, title, event_x
-        The plot: abscissa column (a monitor or ``displacement``), labels and
-        the abscissa of an event when ``x`` is a monitor (see
-        :func:`~shellform.io.table.plot_path`).
+    plot : PathPlot, optional
+        The plot's file, abscissa and labels; None draws none.
     callback : callable, optional
         Also called with each :class:`~shellform.solvers.continuation.PathPoint`;
         returning True stops the run.
@@ -90,12 +109,13 @@ def run_continuation_case(
     summary["files"] = files + [f"{name}_events.json", ck.name]
     # the outcome is on disk before the plot is drawn
     write_json(out / f"{name}_events.json", summary)
-    if plot_file is not None:
+    if plot is not None:
         default_y = "load factor" if control == "load" else "reaction conjugate to the prescribed displacement"
         plots, notes = [], []
-        png = out / (plot_file or f"{name}.png")
-        plot_or_note(png, lambda: plot_path(result, png, x=x, xlabel=xlabel or x, ylabel=ylabel or default_y, title=title,
-                                     event_x=event_x), plots, notes)
+        png = out / (plot.file or f"{name}.png")
+        plot_or_note(png, lambda: plot_path(result, png, x=plot.x, xlabel=plot.xlabel or plot.x,
+                                            ylabel=plot.ylabel or default_y, title=plot.title,
+                                            event_x=plot.event_x), plots, notes)
         summary["files"] = files + plots + summary["files"][1:]
         if notes:
             summary["warnings"] = notes
@@ -137,10 +157,12 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
     )
     res, path_summary = run_continuation_case(
         system, out, control, name="path", progress=lambda msg: progress("  " + msg), resume=resume,
-        checkpoint_every=c["checkpoint_every"], plot_file="load_displacement.png", x=monitor or "displacement",
-        xlabel=f"displacement {monitor or ''} [m]".replace("  ", " "),
-        ylabel="load factor" if control == "load" else "reaction conjugate to the prescribed motion [N]",
-        title=scene["title"], event_x=event_x, **options,
+        checkpoint_every=c["checkpoint_every"],
+        plot=PathPlot("load_displacement.png", x=monitor or "displacement",
+                      xlabel=f"displacement {monitor or ''} [m]".replace("  ", " "),
+                      ylabel="load factor" if control == "load" else "reaction conjugate to the prescribed motion [N]",
+                      title=scene["title"], event_x=event_x),
+        **options,
     )
     for e in res.events:
         progress(f"  {e.kind} point at parameter {e.parameter:.6g}, load {e.load:.6g} (step {e.step})")

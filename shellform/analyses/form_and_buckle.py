@@ -73,7 +73,7 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     run killed while buckling leaves a summary that says so.
     """
     from ..io import write_series
-    from .continuation import run_continuation_case
+    from .continuation import PathPlot, run_continuation_case
     from ..rods.network import build_rod_system
     from ..solvers import solve_static
 
@@ -121,9 +121,10 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
         options["initial_increment"] = b["initial_increment"]
     path, path_summary = run_continuation_case(
         system, out, "load", name="buckling_path", progress=say, resume=resume,
-        checkpoint_every=b["checkpoint_every"], plot_file="buckling_curve.png", x="apex_w",
-        xlabel="apex z-displacement [m]", ylabel="load factor on self-weight",
-        title="inverted shell under its own weight", event_x=lambda e: e.q[3 * apex + 2] - structure.nodes[apex, 2],
+        checkpoint_every=b["checkpoint_every"],
+        plot=PathPlot("buckling_curve.png", x="apex_w", xlabel="apex z-displacement [m]",
+                      ylabel="load factor on self-weight", title="inverted shell under its own weight",
+                      event_x=lambda e: e.q[3 * apex + 2] - structure.nodes[apex, 2]),
         **options)
     write_series(out / "buckling_path.xdmf", system,
                  [(step, q, path.table["lam"][step]) for step, q in zip(path.state_steps, path.states)])
