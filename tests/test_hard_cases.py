@@ -261,3 +261,18 @@ def _table():
 
 if __name__ == "__main__":
     _table()
+
+
+def test_forces_in_play_sum_member_force_magnitudes():
+    """Two bars pulling on one node from both sides: their forces cancel in the residual, not in the
+    forces in play, which hold |N1| + |N2| along the bars."""
+    s = Structure([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]])
+    s.add_bars([[0, 1], [1, 2]], EA=1e3, rest_length=[0.9, 0.9])  # both stretched: N = 1e3 / 9 each
+    s.fix([0, 2])
+    system = build_system(s)
+    N = 1e3 * (1.0 - 0.9) / 0.9
+    play = system.forces_in_play(system.q_ref)
+    r = system.residual(system.q_ref)
+    assert abs(r[3]) < 1e-12  # balanced at the middle node ...
+    assert play[3] == pytest.approx(2 * N, rel=1e-12)  # ... with 2 N in play there
+    assert play[0] == pytest.approx(N, rel=1e-12) and play[4] == 0.0
