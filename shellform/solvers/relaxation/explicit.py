@@ -25,15 +25,19 @@ def explicit_step_size(system, st, dt, scheme):
     return bound_step(system, st.q, st.m_node, scheme, st.damping if scheme == "rk4" else 0.0)
 
 
+def _start(system, st, options, callback, t0, scheme):
+    """What both explicit schemes start from: load factor, step budget, monitor, time step, a work
+    state and the size beyond which a coordinate means the motion has diverged."""
+    mon = Monitor(system, st, scheme, options.lam, callback, options.report_every, t0, options.max_wall_time)
+    h = explicit_step_size(system, st, options.dt, scheme)
+    return options.lam, options.iteration_limit, mon, h, st.q.copy(), 1e6 * st.L_ref
+
+
 def run_rk4(system, st, options, callback, t0):
     """The paper's scheme: classical RK4 of the damped motion until every node is at rest."""
-    lam, max_it = options.lam, options.iteration_limit
-    mon = Monitor(system, st, "rk4", lam, callback, options.report_every, t0, options.max_wall_time)
-    h = explicit_step_size(system, st, options.dt, "rk4")
+    lam, max_it, mon, h, q, L_big = _start(system, st, options, callback, t0, "rk4")
     free = system.free
-    q = st.q.copy()
     m, c = st.m, st.damping
-    L_big = 1e6 * st.L_ref
 
     def acc(qf, vf):
         q[free] = qf
@@ -73,13 +77,9 @@ def run_rk4(system, st, options, callback, t0):
 
 def run_kinetic(system, st, options, callback, t0):
     """Leapfrog with kinetic damping until every node is at rest."""
-    lam, max_it = options.lam, options.iteration_limit
-    mon = Monitor(system, st, "kinetic", lam, callback, options.report_every, t0, options.max_wall_time)
-    h = explicit_step_size(system, st, options.dt, "kinetic")
+    lam, max_it, mon, h, q, L_big = _start(system, st, options, callback, t0, "kinetic")
     free = system.free
-    q = st.q.copy()
     m = st.m
-    L_big = 1e6 * st.L_ref
 
     def force(qf):
         q[free] = qf
