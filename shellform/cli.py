@@ -76,7 +76,7 @@ def _cmd_sweep(args) -> int:
 
 def _cmd_schema(args) -> int:
     from .schema import reference
-    from .scene import SCENE
+    from .scene_format import SCENE
 
     print(reference(SCENE))
     return 0

@@ -1,6 +1,6 @@
 """Scenes: TOML descriptions of a structure and its analysis, in one schema.
 
-:data:`~shellform.schema.SCENE` lists every key: ``load_scene`` reads and
+:data:`~shellform.scene_format.SCENE` lists every key: ``load_scene`` reads and
 validates a file against it and checks what the schema alone cannot (which
 tables suit which geometry and analysis, sizes, node sets); errors name the
 key, the value and what is allowed.
@@ -47,18 +47,8 @@ from .assembly import System, member_effects
 from .effects import gravity_effect, nodal_load_effects
 from .errors import ModelError, SceneError
 from .model import Structure
-from .schema import (
-    ANALYSES_OF,
-    BAR_ROPE,
-    BUCKLING,
-    FORM_FINDING,
-    GRID_GROUPS,
-    LIMITS,
-    PLANFORMS,
-    SCENE,
-    Table,
-    check_table,
-)
+from .scene_format import ANALYSES_OF, BAR_ROPE, BUCKLING, FORM_FINDING, GRID_GROUPS, PLANFORMS, SCENE
+from .schema import LIMITS, Table, check_table
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -1,0 +1,458 @@
+"""The scene format: every table and key a scene may hold, with its type, unit, default and meaning.
+
+The machinery that checks a value against a key and writes the reference is
+:mod:`shellform.schema`; :data:`SCENE` is what ``shellform schema`` prints and
+``docs/scenes.md`` holds (``python docs/update_reference.py``).
+"""
+
+from __future__ import annotations
+
+from .mra.formfind import COARSE_START_NODES
+from .schema import Key, Table
+from .solvers.relaxation.options import Refinements, RelaxationOptions
+
+EFFECTS = ("axial", "rope", "loads", "gravity", "imperfection")
+PLANFORMS = ("rectangle", "ellipse", "disk", "bspline")
+GEOMETRIES = PLANFORMS + ("hemisphere", "file")
+ANALYSES = ("static", "continuation", "dynamics", "mra", "form_and_buckle", "indentation")
+#: analyses that suit each source of geometry (the first is the default)
+ANALYSES_OF = {
+    "nodes": ("static", "continuation", "dynamics"),
+    "file": ("static", "continuation", "dynamics"),
+    "planform": ("mra", "form_and_buckle"),
+    "hemisphere": ("indentation",),
+}
+#: named node sets of a planform grid (:class:`~shellform.geometry.grids.QuadGrid`)
+GRID_GROUPS = ("boundary", "corners", "south", "east", "north", "west", "sw", "se", "ne", "nw")
+BAR_ROPE = ANALYSES_OF["nodes"]
+FORM_FINDING = ANALYSES_OF["planform"]
+
+_POS = dict(minimum=0.0, exclusive_minimum=True)
+#: divisions of a grid per side: far beyond any net that fits in memory is a typing error
+_DIVISIONS = dict(minimum=1, maximum=10_000)
+_NONNEG = dict(minimum=0.0)
+#: a rope's rest length beyond (1 + 10) times its reference length is a typing error
+MAX_SLACK = 10.0
+#: planform sizes: below a millimetre or beyond 1000 km is a typing error (and below 1e-8 m or beyond
+#: 1e300 m the mesher's arithmetic fails)
+_SIZE = dict(minimum=1.0e-3, maximum=1.0e6)
+
+GEOMETRY = Table(
+    discriminator="type",
+    doc="Where the geometry comes from (instead of [nodes]). Planform grids (rectangle, ellipse, disk: gmsh "
+        "structured quads; bspline: a quad grid on a NURBS surface) are hanging nets for form finding; "
+        "'hemisphere' is the Chebyshev-net gridshell of discrete elastic rods; 'file' reads nodes and members "
+        "from a mesh.",
+    keys={
+        "type": Key("str", "Geometry source.", choices=GEOMETRIES),
+        "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...), relative to the scene file. Line "
+                    "cells become members, and so do the edges of triangle and quad cells (each once).",
+                    default=None, only=("file",), required_for=("file",), max_length=1000),
+        "length_x": Key("float", "Side of the rectangle along x.", default=None, unit="m", only=("rectangle",),
+                        required_for=("rectangle",), **_SIZE),
+        "length_y": Key("float", "Side of the rectangle along y.", default=None, unit="m", only=("rectangle",),
+                        required_for=("rectangle",), **_SIZE),
+        "n_i": Key("int", "Quads along x (rectangle) or along the surface's u direction (bspline).", default=None,
+                   only=("rectangle", "bspline"), required_for=("rectangle", "bspline"), **_DIVISIONS),
+        "n_j": Key("int", "Quads along y (rectangle) or along v (bspline).", default=None,
+                   only=("rectangle", "bspline"), required_for=("rectangle", "bspline"), **_DIVISIONS),
+        "origin": Key("vec3", "South-west corner of the rectangle.", default=[0.0, 0.0, 0.0], unit="m",
+                      only=("rectangle",)),
+        "a": Key("float", "Semi-axis of the ellipse along x.", default=None, unit="m", only=("ellipse",),
+                 required_for=("ellipse",), **_SIZE),
+        "b": Key("float", "Semi-axis of the ellipse along y.", default=None, unit="m", only=("ellipse",),
+                 required_for=("ellipse",), **_SIZE),
+        "center": Key("vec3", "Centre of the ellipse or disc.", default=[0.0, 0.0, 0.0], unit="m",
+                      only=("ellipse", "disk")),
+        "radius": Key("float", "Radius of the disc; of the hemisphere R (default 0.0382 m, the paper's "
+                      "7.64 cm diameter).", default=None, unit="m", only=("disk", "hemisphere"),
+                      required_for=("disk",), **_SIZE),
+        "n": Key("int", "Quads per side of the mapped grid (ellipse, disk); rods per direction, odd "
+                 "(hemisphere).", default=None, only=("ellipse", "disk", "hemisphere"),
+                 required_for=("ellipse", "disk", "hemisphere"), **_DIVISIONS),
+        "control_points": Key("surface_points", "Control points of the B-spline surface, nu x nv x 3; the grid "
+                              "lies on the surface and the rope rest lengths come from it.", default=None, unit="m",
+                              only=("bspline",), required_for=("bspline",)),
+        "degree_u": Key("int", "Degree of the surface in u.", default=3, only=("bspline",), minimum=1),
+        "degree_v": Key("int", "Degree of the surface in v.", default=3, only=("bspline",), minimum=1),
+        "weights": Key("grid", "NURBS weights, nu x nv (default: all 1, a B-spline).", default=None, **_POS,
+                       only=("bspline",)),
+        "voronoi_length": Key("float", "Target rod edge length dl; each segment between joints gets round(h/dl) "
+                              "edges.", default=1.0e-3, unit="m", only=("hemisphere",), **_POS),
+    },
+)
+
+FRAME = Table(
+    array=True,
+    doc="Edge frames of a planform net (inline tables in supports.frames): every node on the straight grid line "
+        "between two grid positions is a suspension point, lifted on a parabolic arch.",
+    keys={
+        "from": Key("position", "Grid position [i, j] where the frame starts."),
+        "to": Key("position", "Grid position [i, j] where it ends (same i or same j)."),
+        "rise": Key("float", "Rise of the arch at mid-frame.", default=0.0, unit="m"),
+    },
+)
+
+SUPPORTS = Table(
+    array=True,
+    accept_single=True,
+    doc="Supported nodes (suspension points of a hanging net) and their fixed translations. The node sets of "
+        "one entry are combined; at least one is needed. A single [supports] table is read as one entry. The "
+        "hemisphere needs none: its rod ends are pinned on the equator.",
+    keys={
+        "nodes": Key("index_list", "Node numbers.", default=None),
+        "groups": Key("str_list", "Named node sets: of a planform grid 'boundary', 'corners', 'south', 'east', "
+                      "'north', 'west', 'sw', 'se', 'ne', 'nw'; of a mesh file 'boundary' (nodes on edges of "
+                      "exactly one face, or the ends of a line mesh) and the file's named point or cell sets.",
+                      default=None),
+        "positions": Key("positions", "Structured grid positions [i, j] of a planform (negative counts from the "
+                         "end).", default=None),
+        "frames": FRAME,
+        "z": Key("float", "Every node at this height (within z_tolerance).", default=None, unit="m"),
+        "z_tolerance": Key("float", "Tolerance of z.", default=1.0e-6, unit="m", **_NONNEG),
+        "dofs": Key("str", "Fixed components, any of the letters x, y, z.", default="xyz"),
+    },
+)
+
+# the relaxation's defaults are the solver's own, written once in its options
+_RELAX, _REFINE = RelaxationOptions(), Refinements()
+
+RELAXATION = Table(
+    fill_defaults=True,
+    doc="MRA form finding by dynamic relaxation (analysis 'mra' and 'form_and_buckle'). Also read from a "
+        "top-level [solver] table.",
+    keys={
+        "scheme": Key("str", "Relaxation scheme: pseudo-transient Newton (fast), the paper's explicit RK4, or "
+                      "leapfrog with kinetic damping.", default=_RELAX.scheme, choices=("implicit", "rk4", "kinetic")),
+        "rtol": Key("float", "Rest: every nodal acceleration <= rtol g and velocity <= rtol sqrt(g L).",
+                    default=_RELAX.rtol, **_POS),
+        "velocity_tol": Key("float", "Explicit velocity tolerance (default from rtol).", default=_RELAX.velocity_tol, unit="m/s",
+                            **_POS),
+        "acceleration_tol": Key("float", "Explicit acceleration tolerance (default from rtol).", default=_RELAX.acceleration_tol,
+                                unit="m/s^2", **_POS),
+        "max_iterations": Key("int", "Give up after this many steps (default 500 implicit, 2,000,000 explicit).",
+                              default=_RELAX.max_iterations, minimum=1),
+        "max_wall_time": Key("float", "Give up after this many seconds (default: no limit).", default=_RELAX.max_wall_time, unit="s", **_POS),
+        "damping": Key("float", "Viscous damping per unit mass (default 2 sqrt(g / L)).", default=_RELAX.damping, unit="1/s",
+                       **_NONNEG),
+        "linear_solver": Key("str", "Linear solver of the implicit scheme: 'auto' is 'cholesky' (supernodal "
+                             "CHOLMOD); 'ldl' (QDLDL), 'nd' (SuperLU in nested-dissection order), 'amg' (soft nets "
+                             "only) or 'direct'.", default=_RELAX.linear_solver,
+                             choices=("auto", "cholesky", "ldl", "nd", "amg", "direct")),
+        "slack_active_set": Key("bool", "Implicit scheme: solve each step again with the slack ropes it would "
+                                "stretch modelled as taut: about half the steps, each up to three solves.", default=_REFINE.slack_active_set),
+        "front_sweeps": Key("bool", "Implicit scheme: after a step that leaves only a few nodes out of balance "
+                            "(along the fronts between taut and slack regions), take up to three Newton steps on the "
+                            "nodes within four ropes of them, the rest of the net held.", default=_REFINE.front_sweeps),
+        "factor_correction": Key("bool", "Implicit scheme: before refactorising the tangent, try conjugate gradients "
+                                 "with the kept factorisation corrected by an exact solve on the nodes whose tangent "
+                                 "entries changed (ropes pulled taut or gone slack).", default=_REFINE.factor_correction),
+        "slack_settling": Key("bool", "Implicit scheme: when a step gets ropes' slack state wrong (slack ropes it "
+                              "stretches outside its active set, taut ones it shortens below their rest length), "
+                              "settle them by Newton steps on the step's model over the nodes within three ropes of "
+                              "them (needs slack_active_set).", default=_REFINE.slack_settling),
+        "step_repair": Key("bool", "Implicit scheme: when a few ropes make a step of the whole net overshoot, keep "
+                           "the full step and relax the nodes within three ropes of them from there instead of "
+                           "shortening the whole step (needs slack_active_set).", default=_REFINE.step_repair),
+        "start": Key("str", "Start of a relaxation without a [start] surface: 'auto' is, for the implicit "
+                     f"scheme, the coarse net's start on nets of {COARSE_START_NODES:,} nodes or more and the force-density shape "
+                     "below, and the flat planform for the explicit ones (as in the paper); 'reference' forces the "
+                     "planform, 'force_density' the force-density shape, 'coarse_net' the shape of the net with "
+                     "every third grid line, hung first, interpolated and hung a little deeper.", default="auto",
+                     choices=("auto", "reference", "force_density", "coarse_net")),
+        "dt": Key("float", "Explicit time step (default 90 % of the stability bound) or first pseudo time step.",
+                  default=_RELAX.dt, unit="s", **_POS),
+        "checkpoint_interval": Key("float", "Save the relaxation state to DIR/relaxation_checkpoint.npz at most "
+                                   "this often (and when it stops unconverged); `--resume` restarts from it.",
+                                   default=5.0, unit="s", **_NONNEG),
+    },
+)
+
+START_SHAPE = Table(
+    fill_defaults=True,
+    doc="Start shape of the form finding. Also read from a top-level [start] table.",
+    keys={
+        "type": Key("str", "No start surface ('flat': the [solver] start decides, the planform for the explicit "
+                    "schemes), a B-spline dish, a B-spline fitted to a coarser hanging net, or the shape in balance "
+                    "with the force densities of a coarser hanging net.",
+                    default="flat", choices=("flat", "nurbs", "coarse_nurbs", "coarse_force_density")),
+        "depth": Key("float", "nurbs: depth of the dish.", default=None, unit="m"),
+        "control_heights": Key("grid", "nurbs: control heights over the planform box (instead of depth).",
+                               default=None, unit="m"),
+        "coarsening": Key("int", "coarse_nurbs, coarse_force_density: the coarse net has this many times fewer "
+                          "quads per side.",
+                          default=4, minimum=1),
+        "n_ctrl": Key("int", "coarse_nurbs: control points per direction of the fitted surface.", default=6,
+                      minimum=2),
+        "compare_flat": Key("bool", "Also relax from the flat start and report the iterations and time saved.",
+                            default=False),
+    },
+)
+
+LENGTHS = Table(
+    fill_defaults=True,
+    doc="Rope length statistics and control (analysis 'mra'). Also read from a top-level [lengths] table.",
+    keys={
+        "tolerance": Key("float", "Relative tolerance for 'the same length'.", default=0.01, **_POS),
+        "target": Key("float", "Count the ropes within tolerance of this length (default: no count).", default=None, unit="m", **_POS),
+        "control": Key("bool", "Drive the ropes towards n_classes lengths.", default=False),
+        "n_classes": Key("int", "Length classes of the control.", default=3, minimum=1),
+        "rounds": Key("int", "Rounds of the control.", default=4, minimum=1),
+    },
+)
+
+BUCKLING = Table(
+    fill_defaults=True,
+    doc="Buckling of the rod gridshell built on the found form (analysis 'form_and_buckle'): the inverted net's "
+        "grid lines become rods ([rods]), pinned at the suspension points, loaded by the net's weight times a "
+        "load factor traced by arc-length continuation to the first critical point. Also read from a top-level "
+        "[buckling] table (which may hold the [rods] keys E, G, radius, density and rest_shape too).",
+    keys={
+        "load_factor_max": Key("float", "Stop when the load factor exceeds this.", default=100.0, **_POS),
+        "max_steps": Key("int", "Continuation steps before stopping.", default=60, minimum=1),
+        "initial_increment": Key("float", "First load-factor increment (default 1/20 of load_factor_max).",
+                                 default=None, **_POS),
+        "checkpoint_every": Key("int", "Checkpoint of the path every this many steps.", default=10, minimum=1),
+    },
+)
+
+INDENTATION = Table(
+    fill_defaults=True,
+    doc="Apex indentation of the hemisphere (analysis 'indentation'): pre-stress on the net, push the apex down "
+        "by dD in displacement control through every snap (gridshell paper). The imperfection is random dead "
+        "forces ([imperfection] type 'forces'; default 1e-4 EI/R^2, seed 0).",
+    keys={
+        "mode": Key("str", "I: apex node(s) prescribed, rods rotate freely; II: apex and its neighbours on the "
+                    "central rods move together (clamped-like).", default="I", choices=("I", "II")),
+        "max_displacement": Key("float", "Final apex displacement dD / R.", default=2.0, **_POS),
+        "increment": Key("float", "First continuation step, as dD / R.", default=0.01, **_POS),
+        "snap_method": Key("str", "How the stable state after a snap is found: damped implicit Euler dynamics, "
+                           "energy descent, or descent first.", default="dynamic",
+                           choices=("dynamic", "energy", "auto")),
+        "max_snaps": Key("int", "Stop after this many losses of stability.", default=12, minimum=1),
+        "max_steps": Key("int", "Continuation steps before stopping.", default=3000, minimum=1),
+    },
+)
+
+DYNAMICS = Table(
+    fill_defaults=True,
+    doc="Time stepping by implicit Euler (analysis 'dynamics'; gridshell paper, Eq. 2): lumped masses from "
+        "mass_per_length and [masses], damping C = c M, the loads times the load factor (ramped over ramp_time).",
+    keys={
+        "time_step": Key("float", "Time step h (halved where Newton fails, grown back after). Required for "
+                         "analysis 'dynamics'.", default=None,
+                         unit="s", **_POS),
+        "duration": Key("float", "Simulated time. Required for analysis 'dynamics'.", default=None, unit="s", **_POS),
+        "damping": Key("float", "Mass-proportional damping coefficient c.", default=0.0, unit="1/s", **_NONNEG),
+        "ramp_time": Key("float", "The load factor rises linearly from 0 over this time (0: applied at once).",
+                         default=0.0, unit="s", **_NONNEG),
+        "output_every": Key("int", "Write every k-th step to the XDMF time series.", default=1, minimum=1),
+        "monitor_node": Key("int", "Node whose displacement is tabulated and plotted (default: none; the "
+                            "largest node displacement is tabulated and plotted in any case).", default=None,
+                            minimum=0),
+        "monitor_component": Key("str", "Component of monitor_node.", default="z", choices=("x", "y", "z")),
+        "checkpoint_interval": Key("float", "Save the state to DIR/dynamics_checkpoint.npz at most this often; "
+                                   "`--resume` continues from it.", default=5.0, unit="s", **_NONNEG),
+    },
+)
+
+SCENE = Table(
+    doc="A scene file.",
+    keys={
+        "title": Key("str", "Free text shown in the summary (and as the title of plots).", default=""),
+        "name": Key("str", "Short name (runners of validation cases name their output folder after it): letters, "
+                    "digits, '.', '_', '-' and '+', not starting with '.'.", default="", max_length=100,
+                    pattern=(r"[A-Za-z0-9_+\-][A-Za-z0-9._+\-]*", "letters, digits, '.', '_', '-' or '+', not "
+                             "starting with '.' (it names a folder)")),
+        "description": Key("str", "Free text.", default="", max_length=5000),
+        "nodes": Table(
+            doc="Node coordinates of the reference configuration (a structure given node by node; instead of "
+                "[geometry]).",
+            keys={"coordinates": Key("points", "Reference coordinates, one [x, y, z] per node.", unit="m")},
+        ),
+        "geometry": GEOMETRY,
+        "members": Table(
+            array=True,
+            doc="Groups of two-node members sharing one law (with [nodes] or a mesh file).",
+            keys={
+                "name": Key("str", "Group name (unique).", default=""),
+                "kind": Key("str", "Member law.", choices=("bar", "rope")),
+                "connectivity": Key("pairs", "End nodes of each member (required with [nodes]; with a mesh file "
+                                    "the default is the edges of the cells listed in `cells`).", default=None),
+                "cells": Key("str_list", "Mesh file: members are the edges of cells of these types (default all), "
+                             "less edges an earlier group took.", default=None,
+                             choices=("line", "triangle", "quad")),
+                "EA": Key("float_or_list", "Axial stiffness, one value or one per member.", unit="N", **_POS),
+                "mass_per_length": Key("float_or_list", "Linear density for self-weight and inertia.", default=0.0,
+                                       unit="kg/m", **_NONNEG),
+                "slack": Key("float_or_list", "Rope slack coefficient sc: rest length = (1 + sc) x reference "
+                             "length. Ropes only.", default=0.0, minimum=-1.0, exclusive_minimum=True,
+                             maximum=MAX_SLACK),
+                "rest_length": Key("float_or_list", "Unstressed length; overrides the reference length and "
+                                   "slack (default: from them).", default=None, unit="m", **_POS),
+            },
+        ),
+        "ropes": Table(
+            doc="The ropes of a planform net (form finding): every grid edge is a tension-only rope.",
+            keys={
+                "slack": Key("float_or_list", "Slack coefficient sc: rest length = (1 + sc) x planform edge length; "
+                             "one number, or [sc_i, sc_j] for the two families of grid lines.", default=0.0,
+                             minimum=-1.0, exclusive_minimum=True, maximum=MAX_SLACK),
+                "EA": Key("float", "Axial stiffness (default stiffness_ratio x the weight of the net).", default=None,
+                          unit="N", **_POS),
+                "stiffness_ratio": Key("float", "EA over the net's weight when EA is not given.", default=1.0e4,
+                                       **_POS),
+                "mass_per_length": Key("float", "Rope mass, lumped half to each end node.", default=1.0,
+                                       unit="kg/m", **_NONNEG),
+                "strain_limit": Key("float", "Net ropes strained beyond this at rest are named in a warning and "
+                                    "counted in the summary (n_overstretched_ropes): the shape there depends on EA.",
+                                    default=0.01, **_POS),
+            },
+        ),
+        "rods": Table(
+            doc="Solid circular discrete elastic rods: the hemisphere's (defaults: the paper's 1 mm radius, "
+                "E = 100 GPa, G = E/3, 1000 kg/m^3) and those of the gridshell built on a found form "
+                "(defaults: 20 mm radius, E = 210 GPa, G = E/2.6, weightless: the net's weight is the load).",
+            keys={
+                "E": Key("float", "Young's modulus (default above).", default=None, unit="Pa", **_POS),
+                "G": Key("float", "Shear modulus (default above).", default=None, unit="Pa", **_POS),
+                "radius": Key("float", "Radius of the section (default above).", default=None, unit="m", **_POS),
+                "density": Key("float", "Density of the rods (default above).", default=None, unit="kg/m^3", **_NONNEG),
+                "rest_shape": Key("str", "form_and_buckle: rods straight when unstressed (bent into the form, the "
+                                  "prestress relaxed first) or stress-free in the found shape.", default="straight",
+                                  choices=("straight", "found")),
+                "joints": Key("str", "hemisphere: rods tied at a joint by a penalty spring between two nodes (the "
+                              "paper's Eq. 3), or sharing one node.", default="penalty",
+                              choices=("penalty", "shared")),
+                "joint_stiffness_ratio": Key("float", "hemisphere: penalty stiffness over the rods' axial "
+                                             "stiffness at the joint.", default=1.0e3, **_POS),
+            },
+        ),
+        "masses": Table(
+            doc="Extra point masses.",
+            keys={"node_mass": Key("float", "Point mass at every node.", default=0.0, unit="kg", **_NONNEG)},
+        ),
+        "supports": SUPPORTS,
+        "prescribed": Table(
+            array=True,
+            doc="Prescribed motion: displacement = parameter x direction.",
+            keys={
+                "nodes": Key("index_list", "Driven nodes."),
+                "direction": Key("vec3", "Displacement per unit parameter.", unit="m"),
+            },
+        ),
+        "loads": Table(
+            array=True,
+            doc="Nodal forces.",
+            keys={
+                "nodes": Key("index_list", "Loaded nodes."),
+                "force": Key("vec3", "Force on each listed node.", unit="N"),
+                "scaled": Key("bool", "Multiplied by the load factor (else a dead load).", default=True),
+            },
+        ),
+        "gravity": Table(
+            doc="Self-weight of member and point masses. A hanging net always has it (default g shown).",
+            keys={
+                "g": Key("vec3", "Gravitational acceleration.", default=[0.0, 0.0, -9.81], unit="m/s^2"),
+                "scaled": Key("bool", "Multiplied by the load factor (else a dead load).", default=False),
+            },
+        ),
+        "imperfection": Table(
+            discriminator="type",
+            doc="An imperfection that breaks the symmetry of a perfect structure. 'random' and 'mode' move the "
+                "nodes of the stress-free geometry (free DOFs only; members get their rest lengths from the "
+                "moved geometry); 'forces' adds small random dead forces at the free nodes (the 'imperfection' "
+                "effect; the hemisphere's only kind).",
+            keys={
+                "type": Key("str", "random: every free node moved by a random vector; mode: the nodes moved along "
+                            "the lowest eigenmode of the tangent stiffness; forces: random dead forces.",
+                            choices=("random", "mode", "forces")),
+                "amplitude": Key("float", "Largest node movement (random, mode) [m], or norm of all the forces "
+                                 "together (forces) [N]. For mode its sign picks the direction (the mode is "
+                                 "normalised with its largest component positive); otherwise it is > 0.",
+                                 unit="m or N"),
+                "seed": Key("int", "Seed of the random numbers.", default=0, minimum=0, only=("random", "forces")),
+                "load_factor": Key("float", "mode: the tangent at the equilibrium under this load factor (default: "
+                                   "the tangent at the start state).", default=None, only=("mode",)),
+            },
+        ),
+        "effects": Table(
+            doc="The physical effects to simulate; nothing else is evaluated (bar and rope structures).",
+            keys={
+                "include": Key("str_list", "Effects in the system. Default: those the scene's members, loads, "
+                               "gravity and imperfection call for.", default=None, choices=EFFECTS),
+            },
+        ),
+        "analysis": Table(
+            fill_defaults=True,
+            doc="What to compute. The settings of each analysis are in its own sub-table.",
+            keys={
+                "type": Key("str", "Analysis (default: static for [nodes] and mesh files, mra for planform grids, "
+                            "form_and_buckle when [analysis.buckling] is given, indentation for the hemisphere).",
+                            default=None, choices=ANALYSES),
+                "load_factor": Key("float", "Factor on the scaled loads (static, dynamics; the fixed factor of a "
+                                   "displacement-controlled path).", default=1.0),
+                "prescribed": Key("float", "Prescribed-displacement parameter.", default=0.0),
+                "start": Key("points", "Starting coordinates (default: the reference).", default=None, unit="m"),
+                "merit": Key("str", "Static line-search merit: energy finds stable equilibria, residual any.",
+                             default="energy", choices=("energy", "residual")),
+                "max_iterations": Key("int", "Static Newton iterations before giving up.", default=100, minimum=1),
+                "rtol": Key("float", "Static/continuation residual tolerance relative to the load/reaction norm.",
+                            default=1e-10, **_POS),
+                "linear_solver": Key("str", "Linear solver (static, dynamics).", default="direct",
+                                     choices=("direct", "amg", "auto")),
+                "continuation": Table(
+                    fill_defaults=True,
+                    doc="Arc-length continuation (analysis 'continuation'). The path starts from equilibrium at "
+                        "parameter 0 (the other parameter at its [analysis] value).",
+                    keys={
+                        "control": Key("str", "Path parameter: the load factor or the prescribed-displacement "
+                                       "parameter.", default="load", choices=("load", "displacement")),
+                        "max_steps": Key("int", "Accepted steps before stopping.", default=200, minimum=1),
+                        "parameter_min": Key("float", "Stop when the parameter falls below this (default: no bound).",
+                                             default=None),
+                        "parameter_max": Key("float", "Stop when the parameter exceeds this (default: no bound).",
+                                             default=None),
+                        "initial_increment": Key("float", "First parameter increment (default: 1/20 of the "
+                                                 "distance to the bound).", default=None),
+                        "max_displacement": Key("float", "Stop when a free DOF moves further than this (default: no "
+                                                "bound).",
+                                                default=None, unit="m", **_POS),
+                        "constraint": Key("str", "Arc-length constraint.", default="spherical",
+                                          choices=("spherical", "cylindrical")),
+                        "stability": Key("bool", "Count negative eigenvalues of the tangent at every point.",
+                                         default=True),
+                        "on_bifurcation": Key("str", "At a bifurcation: stay on the primary branch, follow the "
+                                              "secondary one, or stop.", default="continue",
+                                              choices=("continue", "switch", "stop")),
+                        "branch_side": Key("int", "Which half of the secondary branch (+1 or -1).", default=1),
+                        "monitor_node": Key("int", "Node whose displacement is the curve's abscissa (default: "
+                                            "the most loaded or driven DOF).", default=None, minimum=0),
+                        "monitor_component": Key("str", "Component of monitor_node.", default="z",
+                                                 choices=("x", "y", "z")),
+                        "checkpoint_every": Key("int", "Write a checkpoint every this many steps.", default=10,
+                                                minimum=1),
+                    },
+                ),
+                "relaxation": RELAXATION,
+                "start_shape": START_SHAPE,
+                "lengths": LENGTHS,
+                "buckling": BUCKLING,
+                "indentation": INDENTATION,
+                "dynamics": DYNAMICS,
+            },
+        ),
+        "output": Table(
+            fill_defaults=True,
+            doc="What to write besides summary.json.",
+            keys={
+                "formats": Key("str_list", "The final state in each format (state.vtu, state.3dm, ...; 3dm: Rhino, "
+                               "needs the rhino extra). Paths and time series are XDMF whatever this says. Form "
+                               "finding writes its VTU meshes (see meshes) and, with '3dm', form.3dm.",
+                               default=["vtu", "xdmf"], choices=("vtu", "vtk", "xdmf", "3dm")),
+                "meshes": Key("bool", "Form finding: write the hanging net, the inverted net and the inverted "
+                              "shell surface (hanging.vtu, inverted.vtu, inverted_shell.vtu).", default=True),
+            },
+        ),
+    },
+)
