@@ -78,3 +78,29 @@ def test_penalty_from_1e2_to_1e8_converges_and_gaps_shrink():
     # the penalty solution approaches the shared-node one until round-off takes over
     assert np.all(errors[1:5] < 0.2 * errors[:4]), errors
     assert errors.max() < 1e-4 * deflection, errors
+
+
+def test_written_joint_forces_share_each_crossing_load_between_the_rods(tmp_path):
+    """x-rods and y-rods are alike, so the crossing (a, b) of the x-rod at y = b and the
+    y-rod at x = a mirrors the crossing (b, a): what the joint at (a, b) passes on plus what
+    the joint at (b, a) passes on is one crossing's load, and half of it on the diagonal
+    (small load: the joint forces are vertical). Joints are written as cells of their own;
+    the rod fields there are absent (NaN), and the joint fields absent on the rods."""
+    import meshio
+
+    from shellform.io import write_state
+
+    load = 1e-3
+    s, net, idx, pairs = grid(merge=False, ratio=1e6)
+    system = build_rod_system(net)
+    res = solve_static(system, lam=load)
+    assert res.success, res.message
+    cd = {k: v[0] for k, v in meshio.read(write_state(tmp_path / "j.vtu", system, res.q)).cell_data.items()}
+    joint = cd["group"] == -1
+    assert joint.sum() == len(pairs)
+    force = dict(zip(map(tuple, np.round(s.nodes[pairs[:, 0], :2], 9)), cd["joint_force"][joint]))
+    for (a, b), f in force.items():
+        assert f + force[(b, a)] == pytest.approx(load, rel=1e-5)
+    assert force[(0.5, 0.5)] == pytest.approx(0.5 * load, rel=1e-5)
+    assert np.all(np.isnan(cd["joint_force"][~joint])) and np.all(np.isnan(cd["torque"][joint]))
+    assert np.all(np.isfinite(cd["torque"][~joint]))

@@ -23,7 +23,7 @@ import copy
 
 import numpy as np
 
-from .base import Effect, element_pattern, scatter
+from .base import Effect, LineResults, element_pattern, scatter
 
 
 def two_node_blocks(K: np.ndarray) -> np.ndarray:
@@ -37,6 +37,10 @@ def two_node_blocks(K: np.ndarray) -> np.ndarray:
 
 
 class _AxialMembers(Effect):
+    #: kind of the members in output files, and the results written on them
+    member_kind = "bar"
+    written_results = ("axial_force", "strain")
+
     def __init__(self, n_dof: int, connectivity, EA, rest_length):
         super().__init__(n_dof)
         self.conn = np.asarray(connectivity, dtype=np.int64)
@@ -153,6 +157,10 @@ class _AxialMembers(Effect):
         N, _ = self._force(length)
         return {"axial_force": N, "strain": (length - self.L) / self.L, "length": length}
 
+    def line_results(self, q):
+        res = self.member_results(q)
+        return LineResults(self.conn, self.member_kind, {k: res[k] for k in self.written_results})
+
     def held_measures(self, q):
         """Member lengths and their gradients over the six end-node DOFs."""
         d, length = self._geometry(q)
@@ -179,6 +187,8 @@ class Rope(_AxialMembers):
     """Tension-only ropes: the bar law while taut, no force and no stiffness while slack."""
 
     name = "rope"
+    member_kind = "rope"
+    written_results = ("axial_force", "strain", "slack")
 
     def _active(self, length):
         return length > self.L

@@ -18,7 +18,29 @@ System multiplies its contribution by the load factor of the analysis.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+
+@dataclass(frozen=True)
+class LineResults:
+    """Results an effect reports on line cells (two nodes each), for output files.
+
+    Attributes
+    ----------
+    cells : ndarray (m, 2)
+        End nodes of every cell the results belong to.
+    kind : str
+        The member kind of those cells (``"bar"``, ``"rope"``, ``"rod"``), or
+        ``"joint"`` for node pairs that are no member of the structure.
+    fields : dict of name -> ndarray (m,)
+        One value per cell. Only quantities the effect computes appear.
+    """
+
+    cells: np.ndarray
+    kind: str
+    fields: dict[str, np.ndarray]
 
 
 class Effect:
@@ -69,6 +91,10 @@ class Effect:
     def member_results(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Per-member quantities for output (axial force, strain, ...); none by default."""
         return {}
+
+    def line_results(self, q: np.ndarray) -> LineResults | None:
+        """The results this effect writes on line cells; None (the default) writes nothing."""
+        return None
 
     def held_measures(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Measures (member lengths) that a Newton step holds to their linearised change.

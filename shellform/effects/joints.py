@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Effect, element_pattern, scatter
+from .base import Effect, LineResults, element_pattern, scatter
 
 
 class PenaltyJoints(Effect):
@@ -72,3 +72,7 @@ class PenaltyJoints(Effect):
     def member_results(self, q):
         gap = np.linalg.norm(self._gap(q), axis=1)
         return {"gap": gap, "force": self.k * gap}
+
+    def line_results(self, q):
+        res = self.member_results(q)
+        return LineResults(self.pairs, "joint", {"joint_force": res["force"], "joint_gap": res["gap"]})

@@ -31,7 +31,9 @@ from ..rods.hinge import (
     material_curvature_term,
     material_curvature_value,
 )
-from ..rods.kinematics import curvature_binormal, dot
+from ..rods.kinematics import curvature_binormal, dot, material_curvatures, material_frames
+from .base import LineResults
+from .rod_output import edge_means
 
 
 class RodBending(HingeEffect):
@@ -102,12 +104,48 @@ class RodBending(HingeEffect):
             H *= k[:, None, None]
         return k * e, g, H
 
+    def side_moments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Material curvature and bending moment at every hinge, in the frame of each of its edges.
+
+        Returns ``omega / dl`` [1/m] and ``M = EI (omega - omega_bar) / dl``
+        [N m], both of shape (h, 2, 2): hinge, edge (before, after), component
+        (about ``m1``, about ``m2``). The bending energy is
+        ``sum_j dl |M^j|^2 / (4 EI)`` over the two edges.
+        """
+        t, _ = self.frames.tangents(q)
+        u = self.frames.directors(q)
+        theta = q[self.stencil[:, 9:]]
+        kb = curvature_binormal(t[self.hinge_edges[:, 0]], t[self.hinge_edges[:, 1]])
+        omega = np.empty((len(kb), 2, 2))
+        for j in (0, 1):
+            e = self.hinge_edges[:, j]
+            omega[:, j] = material_curvatures(kb, *material_frames(u[e], t[e], theta[:, j]))
+        dl = self.voronoi[:, None, None]
+        return omega / dl, self.EI[:, None, None] * (omega - self.omega_bar) / dl
+
     def member_results(self, q):
-        t0, t1, *_ = self._geometry(q)
-        kb, _, _ = curvature_binormal_jacobian(t0, t1)
-        energy = self._local(q, 0)[0]
-        # moment magnitude from the energy: E = M^2 dl / (2 EI) per hinge
+        """Per hinge: curvatures and moments (components averaged over the two edges' frames)."""
+        kappa, M = self.side_moments(q)
+        k, m = kappa.mean(axis=1), M.mean(axis=1)
         return {
-            "curvature": np.linalg.norm(kb, axis=1) / self.voronoi,
-            "bending_moment": np.sqrt(np.maximum(2.0 * energy * self.EI / self.voronoi, 0.0)),
+            # |omega^j| = |kb| on both edges of an isotropic rod
+            "curvature": np.linalg.norm(kappa[:, 0], axis=1),
+            "curvature_1": k[:, 0],
+            "curvature_2": k[:, 1],
+            # root mean square over the two edges: the moment the bending energy stores
+            "bending_moment": np.sqrt(0.5 * np.sum(M * M, axis=(1, 2))),
+            "bending_moment_1": m[:, 0],
+            "bending_moment_2": m[:, 1],
         }
+
+    def line_results(self, q):
+        kappa, M = self.side_moments(q)
+        n = len(self.frames.edges)
+        k, m = edge_means(kappa, self.hinge_edges, n), edge_means(M, self.hinge_edges, n)
+        return LineResults(self.frames.edges, "rod", {
+            "curvature_1": k[:, 0],
+            "curvature_2": k[:, 1],
+            "bending_moment_1": m[:, 0],
+            "bending_moment_2": m[:, 1],
+            "bending_moment": np.hypot(m[:, 0], m[:, 1]),
+        })

@@ -27,3 +27,4 @@ class RodStretching(AxialBar):
     """
 
     name = "rod_stretch"
+    member_kind = "rod"

@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..rods.hinge import HingeEffect, reference_twist_change
+from .base import LineResults
+from .rod_output import edge_means
 
 
 class RodTwisting(HingeEffect):
@@ -70,3 +72,13 @@ class RodTwisting(HingeEffect):
     def member_results(self, q):
         tau = self.twist(q)
         return {"twist_rate": tau / self.voronoi, "torque": self.GJ * (tau - self.tau_bar) / self.voronoi}
+
+    def line_results(self, q):
+        res = self.member_results(q)
+        n = len(self.frames.edges)
+        both = np.stack([res["torque"], res["torque"]], axis=1)
+        rate = np.stack([res["twist_rate"], res["twist_rate"]], axis=1)
+        return LineResults(self.frames.edges, "rod", {
+            "torque": edge_means(both, self.hinge_edges, n),
+            "twist_rate": edge_means(rate, self.hinge_edges, n),
+        })

@@ -2,10 +2,20 @@
 
 Members are written as line cells in one block, nodes as points at their
 current position. Point data: ``displacement`` and ``reaction``. Cell data:
-``group`` (the member group number, in the order the groups were added) and
-the member results that the members' effects compute: ``axial_force``,
-``strain``, ``slack`` (1 for a slack rope, 0 for a taut one). A result that no
-group's effect computes is not written at all; cells of a group whose effect
+``group`` (the member group number, in the order the groups were added; -1 on
+a joint) and the results the effects compute on their cells
+(:meth:`~shellform.effects.base.Effect.line_results`):
+
+* bars and ropes: ``axial_force`` [N], ``strain`` [-], ropes ``slack`` (1 slack, 0 taut);
+* rods, per edge: ``axial_force``, ``strain``, ``bending_moment_1``,
+  ``bending_moment_2`` (about the material directors ``m1``, ``m2``) and
+  ``bending_moment`` [N m], ``curvature_1``, ``curvature_2`` [1/m],
+  ``torque`` [N m], ``twist_rate`` [rad/m]: hinge values interpolated to the
+  edge midpoints (:mod:`shellform.effects.rod_output`);
+* penalty joints, as line cells of their own between the two joined nodes:
+  ``joint_force`` [N] and ``joint_gap`` [m].
+
+A result that no effect computes is not written at all; cells whose effect
 does not compute it hold NaN (bars are never slack, so their ``slack`` is
 NaN), never a zero that would read as a computed value.
 
@@ -23,22 +33,71 @@ import numpy as np
 
 from .files import atomic_target
 
-#: member results written as cell data where an effect computes them
-RESULT_FIELDS = ("axial_force", "strain", "slack")
+#: units of the cell and point data written
+FIELD_UNITS = {
+    "displacement": "m", "reaction": "N", "group": "-",
+    "axial_force": "N", "strain": "-", "slack": "-",
+    "bending_moment": "N m", "bending_moment_1": "N m", "bending_moment_2": "N m",
+    "curvature_1": "1/m", "curvature_2": "1/m", "torque": "N m", "twist_rate": "rad/m",
+    "joint_force": "N", "joint_gap": "m",
+}
 
 
-def _member_fields(system, q) -> dict[str, np.ndarray]:
-    """Cell data of every member group, concatenated in group order; NaN where a group has no such result."""
-    results = system.member_results(q)
-    groups = system.structure.groups
-    fields = {"group": np.concatenate([np.full(g.n_members, gi, dtype=np.int32) for gi, g in enumerate(groups)])
-              if groups else np.zeros(0, dtype=np.int32)}
-    for key in RESULT_FIELDS:
-        if not any(key in results.get(g.name, {}) for g in groups):
-            continue  # computed by no effect: absent
-        fields[key] = np.concatenate([np.asarray(results[g.name][key], dtype=float) if key in results.get(g.name, {})
-                                      else np.full(g.n_members, np.nan) for g in groups])
-    return fields
+def _pair_keys(cells: np.ndarray, n_nodes: int) -> np.ndarray:
+    cells = np.sort(np.asarray(cells, dtype=np.int64), axis=1)
+    return cells[:, 0] * n_nodes + cells[:, 1]
+
+
+def _rows_of(effect, res, groups, offsets, lines, n_nodes) -> np.ndarray:
+    """The member rows an effect's line results belong to."""
+    names = [g.name for g in groups]
+    label = getattr(effect, "label", None)
+    if label in names:
+        gi = names.index(label)
+        return np.arange(offsets[gi], offsets[gi + 1])
+    candidates = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i, g in enumerate(groups)
+                                 if g.kind == res.kind] or [np.zeros(0, dtype=np.int64)])
+    keys = _pair_keys(lines[candidates], n_nodes)
+    order = np.argsort(keys, kind="stable")
+    want = _pair_keys(res.cells, n_nodes)
+    pos = np.minimum(np.searchsorted(keys[order], want), max(len(keys) - 1, 0))
+    if len(keys) == 0 or np.any(keys[order][pos] != want):
+        raise ValueError(f"effect {effect.name!r} reports results on {res.kind} cells that are no member "
+                         "of the structure")
+    return candidates[order][pos]
+
+
+def _line_cells(system, q) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Line cells (members, then joints) and their cell data; NaN where a cell has no such result."""
+    s = system.structure
+    groups = s.groups
+    offsets = np.cumsum([0] + [g.n_members for g in groups])
+    lines = (np.concatenate([g.connectivity for g in groups]) if groups else np.zeros((0, 2), dtype=np.int64))
+    group = np.concatenate([np.full(g.n_members, gi, dtype=np.int32) for gi, g in enumerate(groups)]
+                           ) if groups else np.zeros(0, dtype=np.int32)
+    fields: dict[str, np.ndarray] = {}
+    joints = []
+    for e in system.effects:
+        res = e.line_results(q)
+        if res is None:
+            continue
+        if res.kind == "joint":
+            joints.append(res)
+            continue
+        rows = _rows_of(e, res, groups, offsets, lines, s.n_nodes)
+        for key, value in res.fields.items():
+            fields.setdefault(key, np.full(len(lines), np.nan))[rows] = value
+    if joints:
+        pairs = np.concatenate([j.cells for j in joints])
+        fields = {k: np.concatenate([v, np.full(len(pairs), np.nan)]) for k, v in fields.items()}
+        start = len(lines)
+        lines = np.concatenate([lines, pairs])
+        group = np.concatenate([group, np.full(len(pairs), -1, dtype=np.int32)])
+        for j in joints:
+            for key, value in j.fields.items():
+                fields.setdefault(key, np.full(len(lines), np.nan))[start:start + len(j.cells)] = value
+            start += len(j.cells)
+    return lines, {"group": group, **fields}
 
 
 def state_mesh(system, q: np.ndarray, lam: float = 1.0) -> meshio.Mesh:
@@ -46,13 +105,12 @@ def state_mesh(system, q: np.ndarray, lam: float = 1.0) -> meshio.Mesh:
     s = system.structure
     n = s.n_nodes
     x = q[: 3 * n].reshape(n, 3)
-    conn = [g.connectivity for g in s.groups]
-    lines = np.concatenate(conn) if conn else np.zeros((0, 2), dtype=np.int64)
+    lines, fields = _line_cells(system, q)
     point_data = {
         "displacement": x - s.nodes,
         "reaction": system.reactions(q, lam)[: 3 * n].reshape(n, 3),
     }
-    cell_data = {k: [v] for k, v in _member_fields(system, q).items()}
+    cell_data = {k: [v] for k, v in fields.items()}
     return meshio.Mesh(points=x.copy(), cells=[("line", lines)], point_data=point_data, cell_data=cell_data)
 
 
