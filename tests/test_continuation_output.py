@@ -61,3 +61,31 @@ def test_a_step_across_a_critical_point_is_drawn_stable_up_to_it(tmp_path, monke
     assert seen["stable"][at] and seen["stable"][at - 1]  # solid up to the limit point
     assert not seen["stable"][at + 1]  # dashed after it
     assert len(seen["x"]) == res.n_points + len(res.events)
+
+
+def test_the_written_buckling_mode_of_a_pinned_column_is_a_half_sine(tmp_path):
+    """Euler's pinned column: the critical point's file holds the state there and the mode
+    sin(pi x / L) (normalised to 1, sign-free; the column may buckle in any transverse
+    direction, so the mode's transverse part is taken along its own direction)."""
+    import meshio
+
+    from shellform.validation.cases_rods import euler_column
+
+    L = 1.0
+    s, system = euler_column("pinned-pinned", n=40, L=L)
+    res, summary = run_continuation_case(system, tmp_path, "load", plot=None, initial_increment=2.0,
+                                         parameter_bounds=(0.0, 1.3 * np.pi**2), max_steps=60)
+    first = summary["events"][0]
+    assert first["kind"] == "bifurcation" and first["number"] == 1
+    assert first["parameter"] == np.float64(first["parameter"])
+    mesh = meshio.read(tmp_path / first["file"])
+    mode = mesh.point_data["mode"]
+    assert mode.shape == (s.n_nodes, 3) and np.all(np.isfinite(mode))
+    transverse = mode[:, 1:]
+    direction = np.linalg.svd(transverse)[2][0]
+    shape = transverse @ direction
+    shape /= shape[np.argmax(np.abs(shape))]
+    x = s.nodes[:, 0]
+    assert np.abs(shape - np.sin(np.pi * x / L)).max() < 1e-3
+    assert abs(np.linalg.norm(mode, axis=1).max() - 1.0) < 1e-12  # largest nodal displacement 1
+    assert first["file"] in summary["files"]

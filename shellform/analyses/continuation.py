@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import scene as scenes
-from ..io import write_json, write_series
+from ..io import write_json, write_mode, write_series
 from ..io.table import plot_path, write_path_csv
 from ..model import AXES
 from .common import Progress, build_scene_model, plot_or_note, model_sizes, write_final_state
@@ -53,7 +53,8 @@ def run_continuation_case(
     """Trace a path and write its files to ``out_dir``.
 
     Writes ``{name}.csv`` (path table), the force-displacement plot
-    (``plot``; None: no plot), ``{name}_events.json``
+    (``plot``; None: no plot), for every critical point ``{name}_critical_{k}.vtu``
+    (the state there, its buckling mode as point data ``mode``), ``{name}_events.json``
     (outcome and events) and keeps ``{name}_checkpoint.npz``: started again
     with the same arguments, an interrupted run resumes from its last
     checkpoint.
@@ -106,7 +107,11 @@ def run_continuation_case(
                         resume=resume, **options)
     files = [write_path_csv(result, out / f"{name}.csv").name]
     summary = result.summary()
-    summary["files"] = files + [f"{name}_events.json", ck.name]
+    modes = []
+    for number, (event, record) in enumerate(zip(result.events, summary["events"]), start=1):
+        modes.append(write_mode(out / f"{name}_critical_{number}.vtu", system, event.q, event.mode, event.lam).name)
+        record.update(number=number, file=modes[-1])
+    summary["files"] = files + modes + [f"{name}_events.json", ck.name]
     # the outcome is on disk before the plot is drawn
     write_json(out / f"{name}_events.json", summary)
     if plot is not None:

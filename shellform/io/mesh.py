@@ -35,7 +35,7 @@ from .files import atomic_target
 
 #: units of the cell and point data written
 FIELD_UNITS = {
-    "displacement": "m", "reaction": "N", "group": "-",
+    "displacement": "m", "reaction": "N", "group": "-", "mode": "-",
     "axial_force": "N", "strain": "-", "slack": "-",
     "bending_moment": "N m", "bending_moment_1": "N m", "bending_moment_2": "N m",
     "curvature_1": "1/m", "curvature_2": "1/m", "torque": "N m", "twist_rate": "rad/m",
@@ -112,6 +112,28 @@ def state_mesh(system, q: np.ndarray, lam: float = 1.0) -> meshio.Mesh:
     }
     cell_data = {k: [v] for k, v in fields.items()}
     return meshio.Mesh(points=x.copy(), cells=[("line", lines)], point_data=point_data, cell_data=cell_data)
+
+
+def normalised_mode(mode: np.ndarray, n_nodes: int) -> np.ndarray:
+    """The translational part of a mode, shape (n_nodes, 3), scaled to a largest nodal
+    displacement of 1 and signed so that its largest component is positive."""
+    m = np.asarray(mode[: 3 * n_nodes], dtype=float).reshape(n_nodes, 3)
+    size = np.linalg.norm(m, axis=1).max() if n_nodes else 0.0
+    if size == 0.0:
+        return m  # a mode of the twist angles alone moves no node
+    flat = m.ravel()
+    return m * (np.sign(flat[np.argmax(np.abs(flat))]) / size)
+
+
+def write_mode(path, system, q: np.ndarray, mode: np.ndarray, lam: float = 1.0) -> Path:
+    """Write the state at a critical point with its buckling mode as point data ``mode``.
+
+    ``mode`` is normalised by :func:`normalised_mode` (ParaView: "Warp By
+    Vector" on ``mode`` with a scale factor in metres shows the buckled shape).
+    """
+    mesh = state_mesh(system, q, lam)
+    mesh.point_data["mode"] = normalised_mode(mode, system.structure.n_nodes)
+    return write_mesh(path, mesh)
 
 
 def write_mesh(path, mesh: meshio.Mesh, file_format: str | None = None) -> Path:
