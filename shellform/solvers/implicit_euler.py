@@ -23,12 +23,13 @@ After every converged step the System accepts the new state, so the rods'
 reference frames are carried along the trajectory by time-parallel transport.
 
 With damping, the motion dies out and the state approaches a stable
-equilibrium: :func:`relax` runs the scheme as dynamic relaxation until the
+equilibrium: :func:`relax_to_rest` runs the scheme as dynamic relaxation until the
 static residual and the velocity vanish.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -39,6 +40,7 @@ import scipy.sparse as sp
 from ..errors import ModelError
 from .equilibrium import ROUNDOFF_RTOL, EquilibriumCheck, forces_in_play, roundoff_level
 from .linear import SingularMatrixError, factorize
+from .options import with_overrides
 
 
 def lumped_mass(structure, network=None) -> np.ndarray:
@@ -100,6 +102,58 @@ class DynamicResult:
         return float(self.residual_norms[-1]) if self.residual_norms.size else float("nan")
 
 
+@dataclass(frozen=True)
+class ImplicitEulerOptions:
+    """Options of :func:`implicit_euler`: what drives and damps the motion, and how each step is solved.
+
+    Attributes
+    ----------
+    mass : ndarray (n_dof,), optional
+        Lumped masses; default :func:`lumped_mass` of the structure (twist
+        DOFs massless unless a rod network's inertia is given through
+        ``lumped_mass(structure, network)``).
+    damping : float or ndarray (n_dof,)
+        Mass-proportional coefficient ``c`` [1/s] (``C = c M``), or the
+        diagonal of ``C`` itself when an array.
+    lam, mu : float or callable
+        Load factor and prescribed-displacement parameter, constant or as
+        functions of time.
+    paths : sequence of NodePath
+        Supports moved along paths (``path(t)``).
+    stop : callable, optional
+        ``stop(t, q, v, static_residual_norm) -> bool``: end early (success).
+    rtol, atol : float
+        Newton tolerance on the step residual (force units), relative to
+        the external, inertial and reaction forces.
+    roundoff_rtol : float
+        Largest step residual, relative to the largest force in play,
+        accepted where round-off stops the Newton iterations
+        (:mod:`shellform.solvers.equilibrium`).
+    max_newton : int
+        Newton iterations of a step before it is retried with half the time step.
+    min_step : float, optional
+        Smallest time step [s] a failing step is halved down to (default ``h / 1024``).
+    linear_solver : str
+        See :mod:`shellform.solvers.linear`.
+    save_every : int
+        Keep every ``save_every``-th state in ``result.states`` (0: none).
+    """
+
+    mass: np.ndarray | None = None
+    damping: float | np.ndarray = 0.0
+    lam: float | Callable[[float], float] = 1.0
+    mu: float | Callable[[float], float] = 0.0
+    paths: Sequence = ()
+    stop: Callable[[float, np.ndarray, np.ndarray, float], bool] | None = None
+    rtol: float = 1e-9
+    atol: float = 1e-12
+    roundoff_rtol: float = ROUNDOFF_RTOL
+    max_newton: int = 25
+    min_step: float | None = None
+    linear_solver: str = "direct"
+    save_every: int = 0
+
+
 def _as_function(value) -> Callable[[float], float]:
     if callable(value):
         return value
@@ -107,22 +161,19 @@ def _as_function(value) -> Callable[[float], float]:
     return lambda t: v
 
 
+def _max_abs(v: np.ndarray) -> float:
+    return float(np.max(np.abs(v), initial=0.0))
+
+
 class _Stepper:
     """One implicit Euler step: Newton on the incremental potential of the free DOFs."""
 
-    def __init__(self, system, mass, damping, lam, mu, paths, rtol, atol, max_iter, linear_solver):
+    def __init__(self, system, options: ImplicitEulerOptions, mass: np.ndarray, damping: np.ndarray):
         self.system = system
-        self.free = system.free
-        self.mass = mass
-        self.damping = damping
-        self.lam = lam
-        self.mu = mu
-        self.paths = tuple(paths)
-        self.rtol, self.atol = rtol, atol
-        self.roundoff_rtol = ROUNDOFF_RTOL
-        self.max_iter = max_iter
-        self.linear_solver = linear_solver
-        self.size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
+        self.o = options
+        self.mass, self.damping = mass, damping
+        self.lam, self.mu = _as_function(options.lam), _as_function(options.mu)
+        self.paths = tuple(options.paths)
 
     def supports(self, q, t):
         """``q`` with the constrained DOFs at their values at time ``t``."""
@@ -133,100 +184,170 @@ class _Stepper:
 
     def step(self, q_k, v_k, t_next, h):
         """Returns (q, r, iterations) or (None, message, iterations)."""
-        sysm, free = self.system, self.free
-        lam = self.lam(t_next)
-        M, C = self.mass, self.damping
-        Mf, Cf = M[free], C[free]
-        jac_diag = Mf / h**2 + Cf / h
+        pb = _StepPotential(self, q_k, v_k, t_next, h)
         q = self.supports(q_k + h * v_k, t_next)  # explicit predictor; supports exact
-        base = q_k.copy()
-
-        def merit(qq):
-            dq = (qq - base)[free]
-            a = dq - h * v_k[free]
-            return 0.5 * float(a @ (Mf * a)) / h**2 + 0.5 * float(dq @ (Cf * dq)) / h + sysm.energy(qq, lam)
-
-        def residual(qq):
-            r = sysm.residual(qq, lam)
-            dq = (qq - base)[free]
-            R = Mf * (dq - h * v_k[free]) / h**2 + Cf * dq / h + r[free]
-            return r, R
-
-        # forces in play: loads, the inertia of the motion, and the member forces at the
-        # step's start (the scale changes little within a step, and is computed once)
-        ext = sysm.external_force(lam)
-        inertia = Mf * v_k[free] / h
-        play = forces_in_play(sysm, q_k, lam)
-        in_play = max(float(np.linalg.norm(ext)), float(np.linalg.norm(inertia)), play[0])
-        in_play_max = max(float(np.max(np.abs(ext), initial=0.0)), float(np.max(np.abs(inertia), initial=0.0)), play[1])
-
-        def test(r, R, J):
-            reactions = r[sysm.constrained]
-            scale = max(in_play, float(np.linalg.norm(reactions)))
-            scale_max = max(in_play_max, float(np.max(np.abs(reactions), initial=0.0)))
-            return EquilibriumCheck(float(np.linalg.norm(R)), scale, self.rtol * scale + self.atol,
-                                    roundoff_level(J.diagonal(), q), self.roundoff_rtol, float(np.linalg.norm(ext)),
-                                    float(np.max(np.abs(R), initial=0.0)), scale_max)
-
-        def stalled(eq, it):
-            if eq.acceptable_at_roundoff:
-                return q, r, it
-            return None, f"Newton iteration {it}: {eq.roundoff_failure()}", it
-
-        r, R = residual(q)
+        r, R = pb.residual(q)
         norm = previous = float(np.linalg.norm(R))
-        eps = np.finfo(float).eps
-        for it in range(1, self.max_iter + 1):
-            K = sysm.tangent_free(q)
-            J = K + sp.diags(jac_diag)
-            eq = test(r, R, J)
+        max_iter = self.o.max_newton
+        for it in range(1, max_iter + 1):
+            J = pb.jacobian(q)
+            eq = pb.test(q, r, R, J)
             if eq.converged:
                 return q, r, it - 1
             if eq.near_roundoff and it > 1 and norm > 0.1 * previous:
-                return stalled(eq, it - 1)
-            phi0 = merit(q)
-            diag = np.abs(J.diagonal())
-            base_shift = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
-            moved = False
-            for shift in [0.0] + [base_shift * 10.0**k for k in range(-8, 4)]:
-                A = J if shift == 0.0 else J + sp.diags(np.full(J.shape[0], shift))
-                try:
-                    p = factorize(A, self.linear_solver).solve(-R)
-                except SingularMatrixError:
-                    continue
-                slope = float(R @ p)
-                if slope >= 0.0:
-                    continue
-                alpha = 1.0
-                for _ in range(30):
-                    q_try = q.copy()
-                    q_try[free] += alpha * p
-                    r_try, R_try = residual(q_try)
-                    n_try = float(np.linalg.norm(R_try))
-                    if np.isfinite(n_try):
-                        phi = merit(q_try)
-                        if phi <= phi0 + 1e-4 * alpha * slope:
-                            moved = True
-                            break
-                        # at round-off level Phi cannot rank steps; the residual still can
-                        if abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope)) and n_try < norm:
-                            moved = True
-                            break
-                    alpha *= 0.5
-                if moved:
-                    break
-            if eq.near_roundoff and (not moved or not n_try < norm):
-                return stalled(eq, it - 1)
-            if not moved:
+                return _stalled(eq, q, r, it - 1)
+            taken = self._descend(pb, q, R, J, norm)
+            if eq.near_roundoff and (taken is None or not taken[3] < norm):
+                return _stalled(eq, q, r, it - 1)
+            if taken is None:
                 return None, f"Newton iteration {it}: no step decreased the incremental potential", it
             previous = norm
-            q, r, R, norm = q_try, r_try, R_try, n_try
-        eq = test(r, R, sysm.tangent_free(q) + sp.diags(jac_diag))
+            q, r, R, norm = taken
+        eq = pb.test(q, r, R, pb.jacobian(q))
         if eq.converged:
-            return q, r, self.max_iter
+            return q, r, max_iter
         if eq.near_roundoff:
-            return stalled(eq, self.max_iter)
-        return None, f"Newton did not converge in {self.max_iter} iterations ({eq.describe()})", self.max_iter
+            return _stalled(eq, q, r, max_iter)
+        return None, f"Newton did not converge in {max_iter} iterations ({eq.describe()})", max_iter
+
+    def _descend(self, pb, q, R, J, norm):
+        """The Newton step from ``q``, shifted until it lowers the incremental potential:
+        ``(q, r, R, |R|)`` after it, or None when no shift gives one."""
+        phi0 = pb.merit(q)
+        diag = np.abs(J.diagonal())
+        base_shift = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
+        for shift in [0.0] + [base_shift * 10.0**k for k in range(-8, 4)]:
+            A = J if shift == 0.0 else J + sp.diags(np.full(J.shape[0], shift))
+            try:
+                p = factorize(A, self.o.linear_solver).solve(-R)
+            except SingularMatrixError:
+                continue
+            slope = float(R @ p)
+            if slope >= 0.0:
+                continue
+            taken = pb.backtrack(q, p, phi0, slope, norm)
+            if taken is not None:
+                return taken
+        return None
+
+
+def _stalled(eq: EquilibriumCheck, q, r, iterations):
+    """The end of a step whose residual stopped falling near the rounding level."""
+    if eq.acceptable_at_roundoff:
+        return q, r, iterations
+    return None, f"Newton iteration {iterations}: {eq.roundoff_failure()}", iterations
+
+
+class _StepPotential:
+    """The incremental potential of one step of size ``h`` from ``(q_k, v_k)``, its gradient and equilibrium test.
+
+    ``Phi(dq) = |dq - h v_k|_M^2 / (2 h^2) + |dq|_C^2 / (2 h) + Pi(q_k + dq, lam)`` over
+    the free DOFs (module docstring).
+    """
+
+    def __init__(self, stepper: _Stepper, q_k, v_k, t_next, h):
+        system, free = stepper.system, stepper.system.free
+        self.system, self.o, self.free = system, stepper.o, free
+        self.lam = stepper.lam(t_next)
+        self.Mf, self.Cf = stepper.mass[free], stepper.damping[free]
+        self.jac_diag = self.Mf / h**2 + self.Cf / h
+        self.base, self.hv, self.h = q_k.copy(), h * v_k[free], h
+        # forces in play: loads, the inertia of the motion, and the member forces at the
+        # step's start (the scale changes little within a step, and is computed once)
+        ext = system.external_force(self.lam)
+        inertia = self.Mf * v_k[free] / h
+        play = forces_in_play(system, q_k, self.lam)
+        self.applied = float(np.linalg.norm(ext))
+        self.in_play = max(self.applied, float(np.linalg.norm(inertia)), play[0])
+        self.in_play_max = max(_max_abs(ext), _max_abs(inertia), play[1])
+
+    def merit(self, q):
+        dq = (q - self.base)[self.free]
+        a = dq - self.hv
+        return (0.5 * float(a @ (self.Mf * a)) / self.h**2 + 0.5 * float(dq @ (self.Cf * dq)) / self.h
+                + self.system.energy(q, self.lam))
+
+    def residual(self, q):
+        """The static residual ``r`` (all DOFs) and the step's residual ``R`` (free DOFs)."""
+        r = self.system.residual(q, self.lam)
+        dq = (q - self.base)[self.free]
+        R = self.Mf * (dq - self.hv) / self.h**2 + self.Cf * dq / self.h + r[self.free]
+        return r, R
+
+    def jacobian(self, q):
+        return self.system.tangent_free(q) + sp.diags(self.jac_diag)
+
+    def test(self, q, r, R, J) -> EquilibriumCheck:
+        reactions = r[self.system.constrained]
+        scale = max(self.in_play, float(np.linalg.norm(reactions)))
+        scale_max = max(self.in_play_max, _max_abs(reactions))
+        return EquilibriumCheck(float(np.linalg.norm(R)), scale, self.o.rtol * scale + self.o.atol,
+                                roundoff_level(J.diagonal(), q), self.o.roundoff_rtol, self.applied,
+                                _max_abs(R), scale_max)
+
+    def backtrack(self, q, p, phi0, slope, norm):
+        """Halve the step ``p`` from ``q`` until the potential falls enough: ``(q, r, R, |R|)``, or None."""
+        eps = np.finfo(float).eps
+        alpha = 1.0
+        for _ in range(30):
+            q_try = q.copy()
+            q_try[self.free] += alpha * p
+            r_try, R_try = self.residual(q_try)
+            n_try = float(np.linalg.norm(R_try))
+            if np.isfinite(n_try):
+                phi = self.merit(q_try)
+                if phi <= phi0 + 1e-4 * alpha * slope:
+                    return q_try, r_try, R_try, n_try
+                # at round-off level Phi cannot rank steps; the residual still can
+                if abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope)) and n_try < norm:
+                    return q_try, r_try, R_try, n_try
+            alpha *= 0.5
+        return None
+
+
+def _mass_and_damping(system, o: ImplicitEulerOptions) -> tuple[np.ndarray, np.ndarray]:
+    """The diagonals of ``M`` and ``C`` over all DOFs, checked."""
+    n = system.n_dof
+    mass = lumped_mass(system.structure) if o.mass is None else np.asarray(o.mass, dtype=float)
+    if mass.shape != (n,) or np.any(mass < 0) or not np.all(np.isfinite(mass)):
+        raise ModelError(f"implicit Euler: mass must be {n} finite non-negative values")
+    damping = np.asarray(o.damping, dtype=float)
+    C = damping * mass if damping.ndim == 0 else damping
+    if C.shape != (n,) or np.any(C < 0) or not np.all(np.isfinite(C)):
+        raise ModelError(f"implicit Euler: damping must be a non-negative coefficient or {n} values")
+    return mass, C
+
+
+class _Trajectory:
+    """The accepted steps of a run: the counts and histories that become its :class:`DynamicResult`."""
+
+    def __init__(self, q, v, t, mass, save_every, started):
+        self.res = DynamicResult(q=q, v=v, t=t, success=False, message="")
+        self.mass, self.save_every, self.started = mass, save_every, started
+        self.times, self.kinetic, self.resid = [], [], []
+
+    def record(self, t, q, v, r_free, iterations) -> float:
+        """Count an accepted step ending at ``(t, q, v)``; the norm of its static residual."""
+        res = self.res
+        res.steps += 1
+        res.newton_iterations.append(iterations)
+        static = float(np.linalg.norm(r_free))
+        self.times.append(t)
+        self.kinetic.append(0.5 * float(v @ (self.mass * v)))
+        self.resid.append(static)
+        if self.save_every and res.steps % self.save_every == 0:
+            res.states.append((t, q.copy()))
+        return static
+
+    def end(self, q, v, t, success: bool, message: str) -> DynamicResult:
+        res = self.res
+        res.q, res.v, res.t = q, v, t
+        res.success, res.message = success, message
+        res.times = np.array(self.times)
+        res.kinetic_energy = np.array(self.kinetic)
+        res.residual_norms = np.array(self.resid)
+        res.wall_time_s = time.perf_counter() - self.started
+        return res
 
 
 def implicit_euler(
@@ -235,20 +356,11 @@ def implicit_euler(
     t_end: float,
     q0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
-    mass: np.ndarray | None = None,
-    damping=0.0,
-    lam=1.0,
-    mu=0.0,
-    paths: Sequence = (),
+    *,
     t0: float = 0.0,
-    rtol: float = 1e-9,
-    atol: float = 1e-12,
-    max_newton: int = 25,
-    min_step: float | None = None,
-    linear_solver: str = "direct",
-    stop: Callable[[float, np.ndarray, np.ndarray, float], bool] | None = None,
-    save_every: int = 0,
+    options: ImplicitEulerOptions | None = None,
     callback: Callable[[float, np.ndarray, np.ndarray], None] | None = None,
+    **overrides,
 ) -> DynamicResult:
     """Integrate ``M a + C v + r(q, lam(t)) = 0`` by implicit Euler from ``t0`` to ``t_end``.
 
@@ -262,98 +374,56 @@ def implicit_euler(
         Final time [s].
     q0, v0 : ndarray, optional
         Initial state (default reference) and velocity (default zero).
-    mass : ndarray (n_dof,), optional
-        Lumped masses; default :func:`lumped_mass` of the structure (twist
-        DOFs massless unless a rod network's inertia is given through
-        ``lumped_mass(structure, network)``).
-    damping : float or ndarray (n_dof,)
-        Mass-proportional coefficient ``c`` [1/s] (``C = c M``), or the
-        diagonal of ``C`` itself when an array.
-    lam, mu : float or callable
-        Load factor and prescribed-displacement parameter, constant or as
-        functions of time.
-    paths : sequence of NodePath
-        Supports moved along paths (``path(t)``).
-    rtol, atol : float
-        Newton tolerance on the step residual (force units), relative to
-        the external, inertial and reaction forces.
-    stop : callable, optional
-        ``stop(t, q, v, static_residual_norm) -> bool``: end early (success).
-    save_every : int
-        Keep every ``save_every``-th state in ``result.states`` (0: none).
+    t0 : float
+        Initial time [s].
+    options : ImplicitEulerOptions, optional
+        Masses, damping, loads and supports in time, tolerances, solver
+        (defaults: :class:`ImplicitEulerOptions`).
     callback : callable, optional
         ``callback(t, q, v)`` after every accepted step (progress).
+    **overrides
+        Any field of :class:`ImplicitEulerOptions` by name (``mass``,
+        ``damping``, ``mu``, ``rtol``, ``stop``, ...), applied on top of ``options``.
 
     Returns
     -------
     DynamicResult
     """
-    start = time.perf_counter()
+    started = time.perf_counter()
+    o = with_overrides(ImplicitEulerOptions, options, overrides, "implicit Euler")
     if not (np.isfinite(h) and h > 0):
         raise ModelError(f"implicit Euler: time step must be positive, got {h}")
     if not (np.isfinite(t_end) and t_end > t0):
         raise ModelError(f"implicit Euler: t_end must be after t0 = {t0}, got {t_end}")
-    n = system.n_dof
-    mass = lumped_mass(system.structure) if mass is None else np.asarray(mass, dtype=float)
-    if mass.shape != (n,) or np.any(mass < 0) or not np.all(np.isfinite(mass)):
-        raise ModelError(f"implicit Euler: mass must be {n} finite non-negative values")
-    damping = np.asarray(damping, dtype=float)
-    C = damping * mass if damping.ndim == 0 else damping
-    if C.shape != (n,) or np.any(C < 0) or not np.all(np.isfinite(C)):
-        raise ModelError(f"implicit Euler: damping must be a non-negative coefficient or {n} values")
-    lam_f, mu_f = _as_function(lam), _as_function(mu)
-    stepper = _Stepper(system, mass, C, lam_f, mu_f, paths, rtol, atol, max_newton, linear_solver)
-    min_step = h / 1024.0 if min_step is None else float(min_step)
-
+    mass, damping = _mass_and_damping(system, o)
+    stepper = _Stepper(system, o, mass, damping)
+    min_step = h / 1024.0 if o.min_step is None else float(o.min_step)
     q = stepper.supports(system.state(base=q0), t0)
-    v = np.zeros(n) if v0 is None else np.array(v0, dtype=float)
-    t = t0
-    res = DynamicResult(q=q, v=v, t=t, success=False, message="")
-    times, kinetic, resid = [], [], []
-    dt = h
-    free = system.free
+    v = np.zeros(system.n_dof) if v0 is None else np.array(v0, dtype=float)
+    t, dt = t0, h
+    run = _Trajectory(q, v, t, mass, o.save_every, started)
     while t_end - t > 1e-9 * h:
         # the last step takes the remainder, never a sliver of a step after it (a step of
         # 1e-14 s makes the inertia terms M / dt^2 large enough to drown every force)
         dt = t_end - t if t_end - t <= dt * (1.0 + 1e-6) else dt
         q_new, r, its = stepper.step(q, v, t + dt, dt)
         if q_new is None:
-            res.rejected_steps += 1
+            run.res.rejected_steps += 1
             dt *= 0.5
             if dt < min_step:
-                res.q, res.v, res.t = q, v, t
-                res.message = f"time step fell below {min_step:.3g} s at t = {t:.6g} s: {r}"
-                break
+                return run.end(q, v, t, False, f"time step fell below {min_step:.3g} s at t = {t:.6g} s: {r}")
             continue
         v = (q_new - q) / dt
         q = q_new
         t += dt
         system.accept(q)
-        res.steps += 1
-        res.newton_iterations.append(its)
-        static = float(np.linalg.norm(r[free]))
-        times.append(t)
-        kinetic.append(0.5 * float(v @ (mass * v)))
-        resid.append(static)
-        if save_every and res.steps % save_every == 0:
-            res.states.append((t, q.copy()))
+        static = run.record(t, q, v, r[system.free], its)
         if callback is not None:
             callback(t, q, v)
-        if stop is not None and stop(t, q, v, static):
-            res.q, res.v, res.t = q, v, t
-            res.success = True
-            res.message = f"stopped at t = {t:.6g} s after {res.steps} steps"
-            break
+        if o.stop is not None and o.stop(t, q, v, static):
+            return run.end(q, v, t, True, f"stopped at t = {t:.6g} s after {run.res.steps} steps")
         dt = min(h, 2.0 * dt)
-    else:
-        res.q, res.v, res.t = q, v, t
-        res.success = True
-        res.message = f"reached t = {t:.6g} s in {res.steps} steps"
-    res.times = np.array(times)
-    res.kinetic_energy = np.array(kinetic)
-    res.residual_norms = np.array(resid)
-    res.wall_time_s = time.perf_counter() - start
-    return res
+    return run.end(q, v, t, True, f"reached t = {t:.6g} s in {run.res.steps} steps")
 
 
 def relax_to_rest(
@@ -362,13 +432,11 @@ def relax_to_rest(
     damping: float,
     t_max: float,
     q0: np.ndarray | None = None,
-    mass: np.ndarray | None = None,
-    lam=1.0,
-    mu=0.0,
-    paths: Sequence = (),
+    *,
     force_tol: float = 1e-8,
     velocity_tol: float | None = None,
-    **kw,
+    options: ImplicitEulerOptions | None = None,
+    **overrides,
 ) -> DynamicResult:
     """Dynamic relaxation: damped implicit Euler until the structure is at rest in equilibrium.
 
@@ -377,20 +445,20 @@ def relax_to_rest(
     is larger) and the largest velocity is below ``velocity_tol`` (default:
     ``force_tol`` times the model size per unit time); fails if ``t_max``
     passes first. Loads and supports are held at their values at ``t_max``
-    when ``lam``/``mu`` are constants.
+    when ``lam``/``mu`` are constants. ``options`` and ``overrides`` are those
+    of :func:`implicit_euler`; the stop criterion is this function's own.
     """
+    o = with_overrides(ImplicitEulerOptions, options, dict(overrides, damping=damping), "implicit Euler")
     size = max(float(np.linalg.norm(np.ptp(system.structure.nodes, axis=0))), 1e-12)
     vtol = force_tol * size if velocity_tol is None else velocity_tol
-    lam_f = _as_function(lam)
+    lam_f = _as_function(o.lam)
 
     def stop(t, q, v, static):
         scale = max(float(np.linalg.norm(system.external_force(lam_f(t)))),
                     float(np.linalg.norm(system.residual(q, lam_f(t))[system.constrained])), 1e-300)
         return static <= force_tol * scale and float(np.abs(v).max()) <= vtol
 
-    res = implicit_euler(
-        system, h, t_max, q0=q0, mass=mass, damping=damping, lam=lam, mu=mu, paths=paths, stop=stop, **kw
-    )
+    res = implicit_euler(system, h, t_max, q0=q0, options=dataclasses.replace(o, stop=stop))
     if res.success and res.t >= t_max - 1e-12 * h and not stop(res.t, res.q, res.v, res.residual_norm):
         res.success = False
         res.message = (
