@@ -23,6 +23,7 @@ more digits than a double has.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -125,11 +126,19 @@ def roundoff_level(K_diagonal: np.ndarray, q: np.ndarray) -> float:
     return EPS * float(np.linalg.norm(K_diagonal)) * float(np.max(np.abs(q), initial=0.0))
 
 
-def check(system, q: np.ndarray, lam: float, r: np.ndarray, rtol: float, atol: float,
-          K_diagonal: np.ndarray | None = None, roundoff_rtol: float = ROUNDOFF_RTOL,
-          play: tuple[float, float] | None = None) -> EquilibriumCheck:
+class Tolerances(Protocol):
+    """The tolerances of an equilibrium test, as every solver's options carry them."""
+
+    rtol: float
+    atol: float
+    roundoff_rtol: float
+
+
+def check(system, q: np.ndarray, lam: float, r: np.ndarray, tolerances: Tolerances,
+          K_diagonal: np.ndarray | None = None, play: tuple[float, float] | None = None) -> EquilibriumCheck:
     """The equilibrium test of state ``q`` with residual ``r`` (all DOFs).
 
+    ``tolerances``: ``rtol``, ``atol`` and ``roundoff_rtol`` (a solver's options).
     ``K_diagonal`` (the free tangent's diagonal) gives the rounding level; without
     it the rounding level is taken as zero and only the tolerance counts.
     ``play``: :func:`forces_in_play` of ``q`` when the caller has it already.
@@ -141,8 +150,8 @@ def check(system, q: np.ndarray, lam: float, r: np.ndarray, rtol: float, atol: f
     scale = max(play[0], float(np.linalg.norm(ext)), float(np.linalg.norm(reactions)))
     scale_max = max(play[1], _max_abs(ext), _max_abs(reactions))
     floor = roundoff_level(K_diagonal, q) if K_diagonal is not None else 0.0
-    return EquilibriumCheck(float(np.linalg.norm(rf)), scale, rtol * scale + atol, floor, roundoff_rtol,
-                            float(np.linalg.norm(ext)), _max_abs(rf), scale_max)
+    return EquilibriumCheck(float(np.linalg.norm(rf)), scale, tolerances.rtol * scale + tolerances.atol, floor,
+                            tolerances.roundoff_rtol, float(np.linalg.norm(ext)), _max_abs(rf), scale_max)
 
 
 def forces_in_play(system, q: np.ndarray, lam: float) -> tuple[float, float]:

@@ -19,7 +19,6 @@ load steps), at ``10^9`` 35 instead of 7818.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -29,6 +28,7 @@ import scipy.sparse as sp
 from .equilibrium import ROUNDOFF_RTOL, check, forces_in_play
 from .linear import LDLFactor, SingularMatrixError, factorize
 from .mechanism import describe_soft_modes
+from .options import with_overrides
 
 
 @dataclass
@@ -172,80 +172,92 @@ def solve_static(
     -------
     StaticResult
     """
-    t0 = time.perf_counter()
-    names = {f.name for f in dataclasses.fields(NewtonOptions)}
-    if set(overrides) - names:
-        raise TypeError(f"unknown Newton option(s): {sorted(set(overrides) - names)}")
-    o = dataclasses.replace(options or NewtonOptions(), **overrides)
+    started = time.perf_counter()
+    o = with_overrides(NewtonOptions, options, overrides, "Newton")
     q = system.state(mu=mu, base=q0)
     if not np.all(np.isfinite(q)):
         bad = int(np.flatnonzero(~np.isfinite(q))[0])
         raise ValueError(f"starting state has a non-finite value at DOF {bad} (node {bad // 3})")
-    free = system.free
+    return _NewtonRun(system, lam, mu, o, started).solve(q, callback)
 
-    def evaluate(qq):
-        r = system.residual(qq, lam)
-        return r, float(np.linalg.norm(r[free]))
 
-    r, norm = evaluate(q)
-    norms = [norm]
-    n_reg = 0
-    in_play = [None, None]  # the state and its forces in play: one evaluation per state, not per test
+class _NewtonRun:
+    """One static solve: its iterations, the equilibrium test of every iterate, and its result."""
 
-    def test(rr, K=None):
-        if in_play[0] is not q:
-            in_play[:] = [q, forces_in_play(system, q, lam)]
-        return check(system, q, lam, rr, o.rtol, o.atol, None if K is None else K.diagonal(), o.roundoff_rtol,
-                     in_play[1])
+    def __init__(self, system, lam: float, mu: float, o: NewtonOptions, started: float):
+        self.system, self.lam, self.mu, self.o, self.started = system, lam, mu, o, started
+        self.norms: list[float] = []
+        self.regularised = 0
+        self._play = (None, None)  # a state and its forces in play: one evaluation per state, not per test
 
-    def result(success, message, it):
+    def evaluate(self, q):
+        r = self.system.residual(q, self.lam)
+        return r, float(np.linalg.norm(r[self.system.free]))
+
+    def test(self, q, r, K=None):
+        if self._play[0] is not q:
+            self._play = (q, forces_in_play(self.system, q, self.lam))
+        return check(self.system, q, self.lam, r, self.o, None if K is None else K.diagonal(), self._play[1])
+
+    def solve(self, q, callback) -> StaticResult:
+        """Newton iterations from ``q`` until the test is met, the residual stalls or no step is found."""
+        o = self.o
+        r, norm = self.evaluate(q)
+        norms = self.norms
+        norms.append(norm)
+        eq = self.test(q, r)
+        if not np.isfinite(norm):
+            return self.result(q, eq, False, "residual is not finite at the starting state", 0)
+        step = _Stepper(self.system, self.lam, o, self.evaluate)
+        for it in range(1, o.max_iter + 1):
+            if eq.converged:
+                return self.result(q, eq, True, f"converged: {eq.describe()}", it - 1)
+            K = self.system.tangent_free(q)
+            eq = self.test(q, r, K)
+            if eq.converged:
+                return self.result(q, eq, True, f"converged: {eq.describe()}", it - 1)
+            # near the rounding level a step can still gain a digit right after a fast
+            # drop; once the residual stops falling, no iteration can help
+            if eq.near_roundoff and len(norms) >= 2 and norms[-1] > 0.1 * norms[-2]:
+                return self.stalled(q, eq, it - 1)
+            taken = step(q, r, norm, K)
+            if eq.near_roundoff and (taken is None or not taken[2] < norm):
+                return self.stalled(q, eq, it - 1)
+            if taken is None:
+                return self.no_step(q, eq, K, step, it)
+            q, r, norm = taken
+            self.regularised = step.regularised
+            norms.append(norm)
+            if callback is not None:
+                callback(it, norm)
+            eq = self.test(q, r, K)
+        if eq.converged:
+            return self.result(q, eq, True, f"converged: {eq.describe()}", o.max_iter)
+        if eq.near_roundoff:
+            return self.stalled(q, eq, o.max_iter)
+        return self.result(q, eq, False, f"not converged in {o.max_iter} iterations: {eq.describe()}", o.max_iter)
+
+    def result(self, q, eq, success: bool, message: str, iterations: int) -> StaticResult:
         return StaticResult(
-            q=q, success=success, message=message, iterations=it, residual_norms=norms,
-            tolerance=eq.tolerance, lam=lam, mu=mu, reactions=system.reactions(q, lam),
-            regularised_steps=n_reg, wall_time_s=time.perf_counter() - t0, forces_in_play=eq.scale,
+            q=q, success=success, message=message, iterations=iterations, residual_norms=self.norms,
+            tolerance=eq.tolerance, lam=self.lam, mu=self.mu, reactions=self.system.reactions(q, self.lam),
+            regularised_steps=self.regularised, wall_time_s=time.perf_counter() - self.started,
+            forces_in_play=eq.scale,
         )
 
-    def stalled(it):
+    def stalled(self, q, eq, iterations: int) -> StaticResult:
         """The end of a solve whose residual stopped falling near the rounding level."""
         if eq.acceptable_at_roundoff:
-            return result(True, f"converged: {eq.describe()}", it)
-        return result(False, f"iteration {it}: {eq.roundoff_failure()}", it)
+            return self.result(q, eq, True, f"converged: {eq.describe()}", iterations)
+        return self.result(q, eq, False, f"iteration {iterations}: {eq.roundoff_failure()}", iterations)
 
-    eq = test(r)
-    if not np.isfinite(norm):
-        return result(False, "residual is not finite at the starting state", 0)
-    step = _Stepper(system, lam, o, evaluate)
-    for it in range(1, o.max_iter + 1):
-        if eq.converged:
-            return result(True, f"converged: {eq.describe()}", it - 1)
-        K = system.tangent_free(q)
-        eq = test(r, K)
-        if eq.converged:
-            return result(True, f"converged: {eq.describe()}", it - 1)
-        # near the rounding level a step can still gain a digit right after a fast
-        # drop; once the residual stops falling, no iteration can help
-        if eq.near_roundoff and len(norms) >= 2 and norms[-1] > 0.1 * norms[-2]:
-            return stalled(it - 1)
-        taken = step(q, r, norm, K)
-        if eq.near_roundoff and (taken is None or not taken[2] < norm):
-            return stalled(it - 1)
-        if taken is None:
-            why = "the tangent is singular even with a large diagonal shift" if step.singular else (
-                f"no step decreased the {o.merit} merit, even with a large diagonal shift")
-            soft = (describe_soft_modes(system, K) if step.singular else "") or \
-                "the structure may be a mechanism at this state"
-            return result(False, f"iteration {it}: {why} ({eq.describe()}); {soft}", it - 1)
-        q, r, norm = taken
-        n_reg = step.regularised
-        norms.append(norm)
-        if callback is not None:
-            callback(it, norm)
-        eq = test(r, K)
-    if eq.converged:
-        return result(True, f"converged: {eq.describe()}", o.max_iter)
-    if eq.near_roundoff:
-        return stalled(o.max_iter)
-    return result(False, f"not converged in {o.max_iter} iterations: {eq.describe()}", o.max_iter)
+    def no_step(self, q, eq, K, step: _Stepper, it: int) -> StaticResult:
+        """The failure of iteration ``it``, where no shift of the tangent gave an acceptable step."""
+        why = "the tangent is singular even with a large diagonal shift" if step.singular else (
+            f"no step decreased the {self.o.merit} merit, even with a large diagonal shift")
+        soft = (describe_soft_modes(self.system, K) if step.singular else "") or \
+            "the structure may be a mechanism at this state"
+        return self.result(q, eq, False, f"iteration {it}: {why} ({eq.describe()}); {soft}", it - 1)
 
 
 class _Stepper:
@@ -279,71 +291,69 @@ class _Stepper:
             if slope >= 0.0:
                 continue  # not a descent direction of the energy: shift further
             projection = (lambda q=q, p=p: StretchProjection(system, q, p, cache=self.cache)) if o.project else None
-            q_try, r_try, norm_try = _line_search(
-                system, q, p, self.lam, o.merit, phi0, slope, norm, self.evaluate, o.max_backtracks, projection
-            )
+            q_try, r_try, norm_try = self.line_search(q, p, phi0, slope, norm, projection)
             if q_try is not None:
                 self.regularised += int(shift > 0.0)
                 return q_try, r_try, norm_try
         return None
 
+    def line_search(self, q, p, phi0, slope, norm, projection=None):
+        """Backtracking (Armijo) along ``p``; returns (q, r, |r|) or (None, None, None).
 
-def _line_search(system, q, p, lam, merit, phi0, slope, norm, evaluate, max_backtracks, projection=None):
-    """Backtracking (Armijo) along ``p``; returns (q, r, |r|) or (None, None, None).
+        ``projection`` (a factory of a :class:`StretchProjection`): once the
+        straight full step is rejected, every step length is tried both on the
+        straight line and projected, and the trial with the lower merit counts.
+        The projected trial wins where stiff members would be stretched by the
+        rotation; the straight one where the members are soft enough for their
+        length change to depart from the linearisation (compressed rods that
+        buckle). The projection changes a trial state at second order in
+        ``alpha``, so the slope of the Armijo test holds for both.
+        """
+        system, lam, merit, evaluate = self.system, self.lam, self.o.merit, self.evaluate
+        free = system.free
+        eps = np.finfo(float).eps
 
-    ``projection`` (a factory of a :class:`StretchProjection`): once the
-    straight full step is rejected, every step length is tried both on the
-    straight line and projected, and the trial with the lower merit counts.
-    The projected trial wins where stiff members would be stretched by the
-    rotation; the straight one where the members are soft enough for their
-    length change to depart from the linearisation (compressed rods that
-    buckle). The projection changes a trial state at second order in
-    ``alpha``, so the slope of the Armijo test holds for both.
-    """
-    free = system.free
-    eps = np.finfo(float).eps
+        def trial(alpha, project=None):
+            """``[q, r, |r|, merit]``; under the energy merit the residual waits until it is needed."""
+            q_try = q.copy()
+            q_try[free] += alpha * p
+            if project is not None:
+                q_try = project(q_try, alpha)
+            if merit == "energy":
+                return [q_try, None, None, system.energy(q_try, lam)]
+            r_try, norm_try = evaluate(q_try)
+            return [q_try, r_try, norm_try, 0.5 * norm_try**2]
 
-    def trial(alpha, project=None):
-        """``[q, r, |r|, merit]``; under the energy merit the residual waits until it is needed."""
-        q_try = q.copy()
-        q_try[free] += alpha * p
-        if project is not None:
-            q_try = project(q_try, alpha)
-        if merit == "energy":
-            return [q_try, None, None, system.energy(q_try, lam)]
-        r_try, norm_try = evaluate(q_try)
-        return [q_try, r_try, norm_try, 0.5 * norm_try**2]
+        def acceptable(c, alpha):
+            phi = c[3]
+            if not np.isfinite(phi):
+                return False
+            armijo = phi <= phi0 + 1e-4 * alpha * slope
+            # close to a minimum the energy changes less than its round-off and
+            # cannot rank steps; the residual norm still can
+            flat = merit == "energy" and abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope))
+            if not (armijo or flat):
+                return False
+            if c[1] is None:
+                c[1], c[2] = evaluate(c[0])
+            if not np.isfinite(c[2]):
+                return False
+            return bool(armijo or c[2] < (1.0 - 1e-4 * alpha) * norm)
 
-    def acceptable(c, alpha):
-        phi = c[3]
-        if not np.isfinite(phi):
-            return False
-        armijo = phi <= phi0 + 1e-4 * alpha * slope
-        # close to a minimum the energy changes less than its round-off and
-        # cannot rank steps; the residual norm still can
-        flat = merit == "energy" and abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope))
-        if not (armijo or flat):
-            return False
-        if c[1] is None:
-            c[1], c[2] = evaluate(c[0])
-        if not np.isfinite(c[2]):
-            return False
-        return bool(armijo or c[2] < (1.0 - 1e-4 * alpha) * norm)
-
-    project = None
-    alpha = 1.0
-    for k in range(max_backtracks):
-        candidates = [trial(alpha)]
-        if k == 0 and projection is not None and not acceptable(candidates[0], alpha):
-            project = projection()
-        if project is not None:
-            candidates.append(trial(alpha, project))
-        # the better of the straight and the projected trial
-        best = min(candidates, key=lambda c: c[3] if np.isfinite(c[3]) else np.inf)
-        if acceptable(best, alpha):
-            return best[0], best[1], best[2]
-        alpha *= 0.5
-    return None, None, None
+        project = None
+        alpha = 1.0
+        for k in range(self.o.max_backtracks):
+            candidates = [trial(alpha)]
+            if k == 0 and projection is not None and not acceptable(candidates[0], alpha):
+                project = projection()
+            if project is not None:
+                candidates.append(trial(alpha, project))
+            # the better of the straight and the projected trial
+            best = min(candidates, key=lambda c: c[3] if np.isfinite(c[3]) else np.inf)
+            if acceptable(best, alpha):
+                return best[0], best[1], best[2]
+            alpha *= 0.5
+        return None, None, None
 
 
 class StretchProjection:
