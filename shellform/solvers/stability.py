@@ -188,7 +188,26 @@ def inertia(
     if n <= DENSE_LIMIT:
         # small: all eigenvalues cost less than two more factorisations
         return _dense_inertia(A, ztol, "dense", ratio)
-    # bracket zero: K + s I counts eigenvalues below -s, K - s I those below +s
+    found = _shifted_inertia(A, scale, pivot_tol, band, ztol)
+    if found is not None:
+        found.min_pivot_ratio = ratio
+        return found
+    if n <= dense_limit:
+        return _dense_inertia(A, ztol, "dense", ratio)
+    raise InertiaError(
+        f"inertia of a {n}x{n} matrix could not be determined: the LDL^T factorisation without pivoting "
+        "was unreliable even with shifts"
+    )
+
+
+def _shifted_inertia(A, scale: float, pivot_tol: float, band: float, ztol: float) -> Inertia | None:
+    """The inertia from two shifted factorisations bracketing zero, and eigsh inside the bracket.
+
+    ``K + s I`` counts the eigenvalues below ``-s``, ``K - s I`` those below ``+s``;
+    the few in between are resolved by eigsh. The band widens tenfold, twice, when a
+    bracket cannot be trusted; None when none can.
+    """
+    n = A.shape[0]
     eye = sp.identity(n, format="csr")
     for rel in (band, 10 * band, 100 * band):
         sigma = rel * scale
@@ -208,11 +227,11 @@ def inertia(
         if m < 0:
             continue
         if m == 0:
-            return Inertia(below_lo, 0, n - below_lo, below_lo, "ldl-shifted", ratio, ztol)
+            return Inertia(below_lo, 0, n - below_lo, below_lo, "ldl-shifted", zero_tol=ztol)
         try:
             w = _eigs_near_zero(A, min(m + 2, n), scale)
         except InertiaError:
-            break
+            return None
         w = np.sort(w)
         in_band = w[(w >= -sigma) & (w < sigma)]
         if in_band.size != m:
@@ -226,15 +245,9 @@ def inertia(
             n_positive=n - n_neg - n_zero,
             n_below_zero=below_lo + int(np.sum(in_band < 0.0)),
             method="ldl-shifted",
-            min_pivot_ratio=ratio,
             zero_tol=ztol,
         )
-    if n <= dense_limit:
-        return _dense_inertia(A, ztol, "dense", ratio)
-    raise InertiaError(
-        f"inertia of a {n}x{n} matrix could not be determined: the LDL^T factorisation without pivoting "
-        "was unreliable even with shifts"
-    )
+    return None
 
 
 # ---------------------------------------------------------------------------
