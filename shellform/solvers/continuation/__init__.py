@@ -25,8 +25,9 @@ can switch to the secondary branch by predicting along the critical mode
 (:mod:`~shellform.solvers.continuation.branches`).
 
 Modules: ``options`` (the typed settings), ``problem`` (``G`` and its linear
-algebra), ``corrector``, ``events``, ``branches``, ``tracer`` (the loop),
-``snapshot`` (checkpoints), ``results``.
+algebra), ``start`` (the first point, the metric and the first step), ``corrector``,
+``events``, ``branches``, ``tracer`` (the loop), ``snapshot`` (checkpoints),
+``results``.
 """
 
 from __future__ import annotations
@@ -40,11 +41,12 @@ import numpy as np
 from ...errors import ModelError
 from .options import CONSTRAINTS, CONTROLS, ContinuationOptions, make_options
 from .results import TABLE_COLUMNS, ContinuationResult, PathEvent, PathLocation, PathPoint
-from .snapshot import load
+from .snapshot import Checkpoint, load
+from .start import start
 from .tracer import Tracer
 
 __all__ = [
-    "CONSTRAINTS", "CONTROLS", "TABLE_COLUMNS", "ContinuationOptions", "ContinuationResult", "PathEvent",
+    "CONSTRAINTS", "CONTROLS", "TABLE_COLUMNS", "Checkpoint", "ContinuationOptions", "ContinuationResult", "PathEvent",
     "PathLocation", "PathPoint", "switch_branch", "trace_path",
 ]
 
@@ -56,9 +58,7 @@ def trace_path(
     p0: float = 0.0,
     direction: int = 1,
     callback: Callable[[PathPoint], bool | None] | None = None,
-    checkpoint: str | os.PathLike | None = None,
-    checkpoint_every: int = 10,
-    resume: bool = False,
+    checkpoint: Checkpoint | str | os.PathLike | None = None,
     options: ContinuationOptions | None = None,
     **overrides,
 ) -> ContinuationResult:
@@ -82,14 +82,11 @@ def trace_path(
         Called with a :class:`PathPoint` after every converged point (progress
         report, streaming output). Returning True or raising StopIteration
         ends the run cleanly.
-    checkpoint : path, optional
-        File (``.npz``) written every ``checkpoint_every`` accepted steps and at
-        the end: enough to continue the path.
-    resume : bool
-        Continue from ``checkpoint`` if that file exists (the options must be the
-        same as in the first run). The table and events of the earlier run are
-        kept, and so are the states.
-
+    checkpoint : Checkpoint or path, optional
+        Where (a file, ``.npz``) and how often to save enough to continue the
+        path, and whether to resume from that file when it exists
+        (:class:`Checkpoint`; a path alone: every 10 steps, no resume). A
+        resumed run keeps the table, events and states of the earlier run.
     options : ContinuationOptions, optional
         Typed options (defaults: :class:`ContinuationOptions`).
     **overrides
@@ -101,13 +98,15 @@ def trace_path(
     ContinuationResult
     """
     tracer = Tracer(system, control, make_options(options, **overrides))
+    if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
+        checkpoint = Checkpoint(checkpoint)
     first = None
-    if resume and checkpoint is not None and os.path.exists(checkpoint):
-        load(tracer, checkpoint)
+    if checkpoint is not None and checkpoint.resume and os.path.exists(checkpoint.path):
+        load(tracer, checkpoint.path)
     else:
         q0 = system.q_ref if q0 is None else np.asarray(q0, dtype=float)
-        first = tracer.start(q0, p0, direction)
-    return tracer.run(callback, checkpoint, checkpoint_every, first)
+        first = start(tracer, q0, p0, direction)
+    return tracer.run(callback, first, checkpoint)
 
 
 def switch_branch(
@@ -153,7 +152,7 @@ def switch_branch(
     o = dataclasses.replace(make_options(options, **overrides), branch_side=side)
     tracer = Tracer(system, control, o)
     p_b = event.parameter
-    first = tracer.start(event.q, p_b, 1)
+    first = start(tracer, event.q, p_b, 1)
     # at the bifurcation the tangent is near-singular: reuse the event's tangent
     t = np.asarray(event.tangent, dtype=float)
     tracer.t_du, tracer.t_dp = t[:-1] / tracer.norm(t[:-1], t[-1]), t[-1] / tracer.norm(t[:-1], t[-1])
@@ -161,6 +160,5 @@ def switch_branch(
     if mode.shape != (system.n_dof,):
         raise ModelError(f"branch switching direction must have {system.n_dof} entries, got shape {mode.shape}")
     return tracer.run(
-        callback, None, 0, first,
-        switch_from=(tracer.u, tracer.p, tracer.t_du, tracer.t_dp, mode[system.free], 0.0),
+        callback, first, switch_from=(tracer.u, tracer.p, tracer.t_du, tracer.t_dp, mode[system.free], 0.0),
     )

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..equilibrium import ROUNDOFF_RTOL
+from ..options import with_overrides
 
 CONTROLS = ("load", "displacement")
 CONSTRAINTS = ("spherical", "cylindrical")
@@ -157,9 +158,4 @@ class ContinuationOptions:
 
 def make_options(options: ContinuationOptions | None = None, **overrides) -> ContinuationOptions:
     """``options`` (default: the defaults) with ``overrides`` by name; an unknown name is a TypeError."""
-    names = {f.name for f in dataclasses.fields(ContinuationOptions)}
-    unknown = set(overrides) - names
-    if unknown:
-        raise TypeError(f"unknown continuation option(s): {sorted(unknown)}")
-    base = options if options is not None else ContinuationOptions()
-    return dataclasses.replace(base, **overrides) if overrides else base
+    return with_overrides(ContinuationOptions, options, overrides, "continuation")

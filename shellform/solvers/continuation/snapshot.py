@@ -9,6 +9,8 @@ settings that change the answer. Written and read through
 from __future__ import annotations
 
 import json
+import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,6 +19,26 @@ from ...io.checkpoint import (CheckpointMismatch, check_fingerprint, fingerprint
 from .results import PathEvent
 
 CHECKPOINT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """Where and how often a continuation run saves what it needs to go on.
+
+    Attributes
+    ----------
+    path : path
+        File (``.npz``) written every ``every`` accepted steps and at the end.
+    every : int
+        Accepted steps between two checkpoints (0: only at the end).
+    resume : bool
+        Continue from ``path`` if that file exists (the options must be the
+        same as in the first run).
+    """
+
+    path: str | os.PathLike
+    every: int = 10
+    resume: bool = False
 
 
 def save(tr, path):

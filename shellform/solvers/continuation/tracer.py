@@ -17,20 +17,18 @@ import time
 
 import numpy as np
 
-from ...errors import MechanismError, ModelError
+from ...errors import ModelError
 from ..linear import LDLFactor, SingularMatrixError
-from ..equilibrium import roundoff_level
 from ..mechanism import describe_soft_modes
-from ..newton import solve_static
 from ..stability import InertiaError, inertia
-from ..step_bounds import FOLD_OVERSHOOT, fold_distance, linearised_critical_increment
+from ..step_bounds import FOLD_OVERSHOOT, fold_distance
 from .branches import switch_at
 from .corrector import StepPoint, correct, land
 from .events import locate
 from .options import CONTROLS, ContinuationOptions
 from .problem import Problem, StepFailure, Timer
 from .results import TABLE_COLUMNS, ContinuationResult, PathEvent, PathPoint
-from .snapshot import save
+from .snapshot import Checkpoint, save
 
 
 class Tracer:
@@ -181,103 +179,6 @@ class Tracer:
             self.state_steps.append(self.step)
         return point
 
-    # -- start -----------------------------------------------------------------------------
-    def start(self, q0, p0, direction):
-        o = self.o
-        lam, mu = self.pb.lam_mu(p0)
-        st = solve_static(self.system, q0, lam=lam, mu=mu, rtol=o.rtol, roundoff_rtol=o.roundoff_rtol, max_iter=50)
-        q = st.q
-        u = q[self.free].copy()
-        K, g = self.pb.jacobian(u, p0, q)
-        diag = np.abs(K.diagonal())
-        # residuals cannot be computed more accurately than the rounding of the
-        # member forces: stiffness times the rounding of the coordinates
-        self.round_floor = roundoff_level(diag, q)
-        if not st.success:
-            raise ModelError(f"no equilibrium at the starting parameter {p0}: {st.message}")
-        # stiffness scale for the arc-length metric: the larger of the reference and
-        # the starting state, so that a start next to a critical point does not distort it
-        d_ref = np.abs(self.pb.jacobian(self.system.q_ref[self.free], p0)[0].diagonal())
-        kbar = [float(np.mean(d[d > 0])) for d in (diag, d_ref) if np.any(d > 0)]
-        self.kbar = max(kbar) if kbar else 1.0
-        F = self.pb.factor(K)
-        b = None
-        if F is not None:
-            try:
-                b = self.pb.solve(F, -g)
-            except SingularMatrixError:
-                b = None
-        if b is None:
-            soft = describe_soft_modes(self.system, K)
-            raise MechanismError(
-                f"the tangent is singular at the starting point: {soft}" if soft else
-                "the tangent is singular at the starting point; start from a regular state "
-                "(or use switch_branch from a located event)"
-            )
-        nb = float(np.linalg.norm(b))
-        if o.constraint == "cylindrical":
-            if nb == 0.0:
-                raise ModelError("cylindrical arc length: the parameter does not move any free DOF")
-            c = 0.0
-        elif o.parameter_scale is not None:
-            c = float(o.parameter_scale)
-        else:
-            # du/dp of a typical stiffness rather than |K^-1 g|: defined and moderate
-            # even when the start is close to a critical point
-            ng = float(np.linalg.norm(g))
-            c = o.psi * (ng / self.kbar if ng > 0 else 1.0)
-        self.c2 = c * c
-        # no step may be longer than the linearised distance to the nearest critical point
-        crit = self.critical_increment(u, p0, K, F, b, direction, q)
-        ds_crit = crit * math.sqrt(nb * nb + self.c2) if crit is not None else math.inf
-        # first step: parameter increment sets the arc length unless ds is given
-        if o.ds is not None:
-            ds = float(o.ds)
-        else:
-            dp0 = o.initial_increment
-            if dp0 is None:
-                lo, hi = o.parameter_bounds
-                span = hi - p0 if direction >= 0 else p0 - lo
-                if span <= 0 or not (np.isfinite(span) or crit is not None):
-                    raise ModelError(
-                        "continuation needs a step size: give ds, initial_increment or a finite parameter bound"
-                    )
-                dp0 = min(span / 20.0, crit / 4.0 if crit is not None else math.inf)
-            ds = abs(float(dp0)) * math.sqrt(nb * nb + self.c2)
-        if not (np.isfinite(ds) and ds > 0):
-            raise ModelError(f"initial arc length must be positive and finite, got {ds}")
-        self.ds = ds
-        self.ds_min = o.ds_min if o.ds_min is not None else ds * 1e-6
-        # an explicit first step is the user's to take; after it no default step exceeds the estimate
-        self.ds_max = o.ds_max if o.ds_max is not None else min(ds * 10.0, max(ds, ds_crit))
-        t_du, t_dp = self.tangent_from(K, g, F, None, None)
-        if direction < 0:
-            t_du, t_dp = -t_du, -t_dp
-        self.u, self.p, self.q = u, float(p0), q
-        self.t_du, self.t_dp = t_du, t_dp
-        self.accept(q)
-        self.n_neg = self.count(K, F)
-        self.step, self.branch, self.s = 0, 0, 0.0
-        r = self.system.residual(q, lam)
-        return self.record(q, r, p0, st.iterations, 0.0, self.n_neg)
-
-    def critical_increment(self, u, p, K, F, du_dp, direction, q):
-        """Linearised parameter increment to the nearest critical point ahead (None: none or unknown).
-
-        Only from a start whose factorisation ``K = L D L^T`` has a positive
-        ``D`` (``K`` positive definite; see
-        :func:`~shellform.solvers.step_bounds.linearised_critical_increment`).
-        An estimate, not a stability check: a start it cannot judge goes
-        without one.
-        """
-        if not isinstance(F, LDLFactor) or not np.all(F.d > 0.0):
-            return None
-        t0 = time.perf_counter()
-        crit = linearised_critical_increment(lambda uu, pp: self.pb.jacobian(uu, pp), u, p, K, F, du_dp,
-                                             1.0 if direction >= 0 else -1.0, float(np.max(np.abs(q))))
-        self.timer.add("step_bounds", t0)
-        return crit
-
     # -- one step with cut-backs -------------------------------------------------------------
     def attempt(self, ds) -> StepPoint:
         """Predict and correct from the current point; return the new point or raise."""
@@ -329,9 +230,13 @@ class Tracer:
                         f"step {self.step + 1}: arc length cut below ds_min = {self.ds_min:.3e} "
                         f"at parameter {self.p:.6g}; last failure: {last_msg}{'; ' + soft if soft else ''}"
                     ) from None
+
     # -- main loop --------------------------------------------------------------------------------------
-    def run(self, callback, checkpoint, checkpoint_every, first_point, switch_from=None) -> ContinuationResult:
-        """Extend the path until a bound, an event stop, the step budget or a failure; the result."""
+    def run(self, callback, first_point, checkpoint: Checkpoint | None = None, switch_from=None) -> ContinuationResult:
+        """Extend the path until a bound, an event stop, the step budget or a failure; the result.
+
+        ``first_point`` is reported to ``callback`` before the first step (None after a resume).
+        """
         o = self.o
         status, message, success = "max_steps", "", True
         if self.finished is not None and self.finished[0] not in ("max_steps", "callback"):
@@ -348,8 +253,8 @@ class Tracer:
                     raise StopIteration
             while self.step < o.max_steps:
                 stop = self.advance(callback)
-                if checkpoint is not None and checkpoint_every and self.step % checkpoint_every == 0:
-                    save(self, checkpoint)
+                if checkpoint is not None and checkpoint.every and self.step % checkpoint.every == 0:
+                    save(self, checkpoint.path)
                 if stop is not None:
                     status, message = stop
                     break
@@ -361,7 +266,7 @@ class Tracer:
             status, message, success = "failed", str(exc), False
         self.finished = (status, message, success)
         if checkpoint is not None:
-            save(self, checkpoint)
+            save(self, checkpoint.path)
         self.timer.t["total"] = time.perf_counter() - self.t_created
         return self.result(success, message, status)
 
