@@ -88,7 +88,7 @@ def run_continuation_case(
         JSON-ready outcome, events and file names (also written to
         ``{name}_events.json``).
     """
-    from ..solvers.continuation import trace_path
+    from ..solvers.continuation import Checkpoint, trace_path
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -103,8 +103,8 @@ def run_continuation_case(
             )
         return callback(pt) if callback is not None else None
 
-    result = trace_path(system, control, callback=on_point, checkpoint=ck, checkpoint_every=checkpoint_every,
-                        resume=resume, **options)
+    result = trace_path(system, control, callback=on_point, checkpoint=Checkpoint(ck, checkpoint_every, resume),
+                        **options)
     files = [write_path_csv(result, out / f"{name}.csv").name]
     summary = result.summary()
     modes = []
