@@ -298,7 +298,7 @@ def _continuation_scene(tmp_path, steps=150, every=1) -> Path:
     return scene
 
 
-CONTINUATION_FILES = ("path.csv", "path.xdmf", "path_events.json", "load_displacement.png", "state.vtu")
+CONTINUATION_FILES = ("path.csv", "path.xdmf", "path.h5", "path_events.json", "load_displacement.png", "state.vtu")
 
 
 def test_continuation_killed_and_resumed_writes_the_uninterrupted_files(tmp_path, capsys):
@@ -340,6 +340,7 @@ def test_form_and_buckle_killed_while_buckling_and_resumed(tmp_path, seed):
     scene.write_text(text.replace("load_factor_max = 1000.0",
                                   "load_factor_max = 1000.0\ninitial_increment = 2.0\ncheckpoint_every = 1"))
     files = ("hanging.vtu", "inverted.vtu", "inverted_shell.vtu", "buckling_path.csv", "buckling_path.xdmf",
+             "buckling_path.h5",
              "buckling_path_events.json", "buckling_curve.png")
     # the form finding, resumed from its state saved at rest, reports the velocity of its own last step
     alive = _kill_and_resume(tmp_path, scene, "buckling_path_checkpoint.npz", 0.5, files, seed=seed,
@@ -364,7 +365,7 @@ def test_indentation_killed_and_run_again(tmp_path):
     assert b["max_force_normalised"] == pytest.approx(a["max_force_normalised"], rel=1e-2)
     assert [c["label"] for c in a["configurations"]] == [c["label"] for c in b["configurations"]]
     assert [p.name for p in cut.iterdir() if p.name.startswith(".")] == []
-    for name in ("indentation.csv", "indentation.xdmf"):
+    for name in ("indentation.csv", "indentation.xdmf", "indentation.h5"):
         assert (cut / name).read_bytes() == (whole / name).read_bytes(), name
 
 
@@ -373,7 +374,7 @@ def test_time_stepping_killed_and_resumed(tmp_path):
     text = (ROOT / "scenes" / "chain_dynamics.toml").read_text()
     scene = tmp_path / "chain.toml"
     scene.write_text(text + "checkpoint_interval = 0.0\n" if "checkpoint_interval" not in text else text)
-    files = ("dynamics.csv", "dynamics.xdmf", "dynamics.png")
+    files = ("dynamics.csv", "dynamics.xdmf", "dynamics.h5", "dynamics.png")
     # the Newton iterations and rejected steps the summary gives are those of the last run
     _kill_and_resume(tmp_path, scene, "dynamics_checkpoint.npz", 1.0, files, seed=11,
                      volatile={"newton_iterations", "rejected_steps"})

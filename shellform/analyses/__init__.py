@@ -22,6 +22,7 @@ import time
 from ..io.checkpoint import CheckpointMismatch
 from ..io.files import output_folder, output_lock, remove_stale_temporaries, write_bytes
 from ..io.summary import RunRecord
+from ..io.units import units_block
 from .common import Progress, quiet
 from .continuation import run_continuation, run_continuation_case
 from .dynamics import run_dynamics
@@ -94,5 +95,6 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
             raise
         summary = {"title": scene["title"], **summary}
         summary["wall_time_s"] = time.perf_counter() - t0
+        summary["units"] = units_block()
         record.write(summary)
         return {**summary, "run_status": record.status, "converged": record.converged, "stages": record.stages}

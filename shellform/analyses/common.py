@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 
 from .. import scene as scenes
 from ..io import write_series, write_state
@@ -26,6 +27,20 @@ def model_sizes(structure, system) -> dict:
     }
 
 
+def series_time(*candidates: tuple[str, object]) -> tuple[str, np.ndarray]:
+    """The first candidate ``(name, values)`` that increases from state to state.
+
+    A time series is ordered by its time, so a load factor that turns back at
+    a limit point cannot be one: the next candidate (an arc length, the step
+    number) takes its place. The last candidate is used whatever it does.
+    """
+    for name, values in candidates:
+        v = np.asarray(values, dtype=float)
+        if v.size < 2 or np.all(np.diff(v) > 0):
+            break
+    return name, v
+
+
 def plot_or_note(path: Path, draw: Callable[[], Path], files: list, notes: list) -> None:
     """Draw a plot (``draw()`` writes ``path``); a plot that fails is noted, not raised.
 
@@ -44,7 +59,8 @@ def write_final_state(scene: dict, out: Path, system, q, lam: float, formats=Non
     for fmt in formats if formats is not None else scene["output"]["formats"]:
         path = out / f"state.{fmt}"
         if fmt == "xdmf":
-            write_series(path, system, [(lam, q, lam)])
+            write_series(path, system, [(lam, q, lam)], time_name="load factor")
+            files.append(path.with_suffix(".h5").name)
         elif fmt == "3dm":
             from ..io.rhino import structure_3dm
 

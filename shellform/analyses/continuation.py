@@ -6,11 +6,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from .. import scene as scenes
 from ..io import write_json, write_mode, write_series
 from ..io.table import plot_path, write_path_csv
 from ..model import AXES
-from .common import Progress, build_scene_model, plot_or_note, model_sizes, write_final_state
+from .common import Progress, build_scene_model, model_sizes, plot_or_note, series_time, write_final_state
 
 
 @dataclass(frozen=True)
@@ -133,6 +135,22 @@ def run_continuation_case(
     return result, summary
 
 
+def write_path_series(path: Path, system, result, load_factor: float) -> str:
+    """The stored states of a traced path as an XDMF series; returns what its time is.
+
+    The time is the path parameter while it increases, else the arc length,
+    else the step number (:func:`~shellform.analyses.common.series_time`).
+    """
+    row = {int(step): k for k, step in enumerate(result.table["step"])}
+    rows = [row.get(int(step)) for step in result.state_steps]
+    column = lambda c: [result.table[c][r] if r is not None else np.nan for r in rows]  # noqa: E731
+    lam = [v if np.isfinite(v) else load_factor for v in column("lam")]
+    name, times = series_time(("path parameter", column("parameter")), ("arc length", column("arc_length")),
+                              ("step", result.state_steps))
+    write_series(path, system, list(zip(times, result.states, lam)), time_name=name)
+    return name
+
+
 def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
     model = build_scene_model(scene, progress)
     structure, system = model.structure, model.system
@@ -172,13 +190,13 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
     for e in res.events:
         progress(f"  {e.kind} point at parameter {e.parameter:.6g}, load {e.load:.6g} (step {e.step})")
     lam_of = dict(zip(res.table["step"], res.table["lam"]))
-    write_series(out / "path.xdmf", system, [(step, q, lam_of.get(step, a["load_factor"]))
-                                             for step, q in zip(res.state_steps, res.states)])
+    time_name = write_path_series(out / "path.xdmf", system, res, a["load_factor"])
     final = write_final_state(scene, out, system, res.states[-1], lam_of.get(res.state_steps[-1], a["load_factor"]),
                          [f for f in scene["output"]["formats"] if f != "xdmf"]) if res.states else []
     summary = {"analysis": "continuation", "converged": bool(res.success), **path_summary,
                **model_sizes(structure, system)}
-    summary["files"] = path_summary["files"] + ["path.xdmf"] + final
+    summary["files"] = path_summary["files"] + ["path.xdmf", "path.h5"] + final
+    summary["xdmf_time"] = time_name
     if model.imperfection:
         summary["imperfection"] = model.imperfection
     return summary

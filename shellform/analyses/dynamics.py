@@ -160,9 +160,12 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
 
 def _write_history(scene, out: Path, system, hist: _History, q_end, lam_end) -> tuple[list[str], list[str]]:
     """The table, the XDMF series, the plot and the final state; the files written and notes on plots."""
-    files = [write_csv(out / "dynamics.csv", hist.table, hist.columns).name]
-    write_series(out / "dynamics.xdmf", system, hist.frames)
-    files.append("dynamics.xdmf")
+    units = {"step": "-", "time": "s", "kinetic_energy": "J", "max_displacement": "m"}
+    if hist.monitor:
+        units[hist.monitor[0]] = "m"
+    files = [write_csv(out / "dynamics.csv", hist.table, hist.columns, units=units).name]
+    write_series(out / "dynamics.xdmf", system, hist.frames, time_name="time [s]")
+    files += ["dynamics.xdmf", "dynamics.h5"]
     y = hist.monitor[0] if hist.monitor else "max_displacement"
     notes: list[str] = []
     plot_or_note(out / "dynamics.png", lambda: plot_curve(out / "dynamics.png", hist.table["time"], hist.table[y],

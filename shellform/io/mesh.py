@@ -25,23 +25,12 @@ run never leaves a half-written result behind.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from pathlib import Path
 
 import meshio
 import numpy as np
 
 from .files import atomic_target
-
-#: units of the cell and point data written
-FIELD_UNITS = {
-    "displacement": "m", "reaction": "N", "group": "-", "mode": "-",
-    "axial_force": "N", "strain": "-", "slack": "-",
-    "bending_moment": "N m", "bending_moment_1": "N m", "bending_moment_2": "N m",
-    "curvature_1": "1/m", "curvature_2": "1/m", "torque": "N m", "twist_rate": "rad/m",
-    "joint_force": "N", "joint_gap": "m",
-}
-
 
 def _pair_keys(cells: np.ndarray, n_nodes: int) -> np.ndarray:
     cells = np.sort(np.asarray(cells, dtype=np.int64), axis=1)
@@ -147,29 +136,3 @@ def write_mesh(path, mesh: meshio.Mesh, file_format: str | None = None) -> Path:
 def write_state(path, system, q: np.ndarray, lam: float = 1.0) -> Path:
     """Write one state (format from the suffix: ``.vtu``, ``.vtk``, ``.xdmf``, ...)."""
     return write_mesh(path, state_mesh(system, q, lam))
-
-
-def write_series(path, system, states: Iterable[tuple[float, np.ndarray, float]]) -> Path:
-    """Write a sequence of states as an XDMF time series.
-
-    Parameters
-    ----------
-    path : path-like
-        Target ``.xdmf`` file. Data are stored inline (XML), so the series is
-        one self-contained file.
-    states : iterable of (time, q, lam)
-        ``time`` is the value ParaView shows on its time axis (a load factor,
-        a prescribed displacement or a physical time).
-    """
-    path = Path(path)
-    with atomic_target(path) as tmp, meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as writer:
-        first = True
-        for t, q, lam in states:
-            mesh = state_mesh(system, q, lam)
-            if first:
-                # XDMF series share one geometry: the reference configuration;
-                # ParaView's "Warp By Vector" on displacement shows each state
-                writer.write_points_cells(system.structure.nodes, mesh.cells)
-                first = False
-            writer.write_data(float(t), point_data=mesh.point_data, cell_data=mesh.cell_data)
-    return path

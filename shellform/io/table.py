@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .files import open_atomic
+from .units import bare_name, header, path_units
 
 
 def _cell(v):
@@ -29,7 +30,8 @@ def _cell(v):
     return v
 
 
-def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None = None) -> Path:
+def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None = None,
+              units: Mapping[str, str] | None = None) -> Path:
     """Write equal-length columns as CSV with a header row.
 
     Parameters
@@ -37,6 +39,8 @@ def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None
     table : mapping of column name to sequence
     columns : sequence of str, optional
         Columns to write, in order (default: all of ``table``).
+    units : mapping of column name to unit, optional
+        Written into the header as ``name [unit]``.
 
     Returns
     -------
@@ -53,7 +57,7 @@ def write_csv(path, table: Mapping[str, Sequence], columns: Sequence[str] | None
         raise ValueError(f"columns have different lengths: {sorted(lengths)}")
     with open_atomic(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(columns)
+        w.writerow([header(c, units) for c in columns])
         for row in zip(*(table[c] for c in columns)):
             w.writerow([_cell(v) for v in row])
     return path
@@ -71,12 +75,13 @@ def _column(values: list[str]) -> np.ndarray:
 def read_csv(path) -> dict[str, np.ndarray]:
     """Read a CSV written by :func:`write_csv`.
 
-    Columns of integers come back as integers, other numeric columns as
-    floats (exactly the values written), the rest as strings.
+    Columns are keyed by name without their unit. Columns of integers come
+    back as integers, other numeric columns as floats (exactly the values
+    written), the rest as strings.
     """
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
-    head, body = rows[0], rows[1:]
+    head, body = [bare_name(h) for h in rows[0]], rows[1:]
     return {c: _column([r[i] for r in body]) for i, c in enumerate(head)}
 
 
@@ -224,7 +229,8 @@ def path_columns(result) -> list[str]:
 
 def write_path_csv(result, path, columns: Sequence[str] | None = None) -> Path:
     """Write the table of a :class:`~shellform.solvers.continuation.ContinuationResult`, one row per point."""
-    return write_csv(path, result.table, list(columns) if columns is not None else path_columns(result))
+    return write_csv(path, result.table, list(columns) if columns is not None else path_columns(result),
+                     units=path_units(result.control, result.monitors))
 
 
 read_path_csv = read_csv
