@@ -5,7 +5,7 @@ import pytest
 
 from shellform import Structure, build_system
 from shellform.solvers.relaxation import Refinements, active_set, nodal_masses, relax
-from shellform.solvers.relaxation.active_set import engage_slack_ropes, settle_slack_set
+from shellform.solvers.relaxation.active_set import SlackRopeModel, engage_slack_ropes, settle_slack_set
 from shellform.solvers.relaxation.linalg import SPDSolve, diagonal_positions
 from shellform.solvers.relaxation.patch import NodeGraph
 from shellform.solvers.relaxation.ropes import engaged_terms, is_slack, linearised, rope_effects, stretched_by
@@ -61,7 +61,7 @@ def test_settling_on_the_whole_net_minimises_the_step_model(first_step, monkeypa
     solver = SPDSolve("cholesky", system.free.size)
     # one solve without slack ropes: the step stretches some of them and shortens taut ones
     # below their rest length, where the model's springs push
-    p0, _ = engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
+    p0, _ = engage_slack_ropes(SlackRopeModel(system, ropes, rounds=0), solver, A, r, q, 1e-12, None)
     none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
     assert sum(int(m.sum()) for m in _stretched(system, ropes, q, p0)) >= 10
     assert sum(int(m.sum()) for m in _released(system, ropes, q, p0)) >= 10
@@ -84,7 +84,7 @@ def test_settling_on_the_whole_net_minimises_the_step_model(first_step, monkeypa
 def test_a_patch_beyond_the_share_leaves_the_step_as_it_is(first_step):
     system, ropes, A, r, q = first_step
     solver = SPDSolve("cholesky", system.free.size)
-    p0, _ = engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, rounds=0)
+    p0, _ = engage_slack_ropes(SlackRopeModel(system, ropes, rounds=0), solver, A, r, q, 1e-12, None)
     none = [np.zeros(len(e.L), dtype=bool) for e in ropes]
     assert sum(int(m.sum()) for m in _stretched(system, ropes, q, p0)) >= 10  # there is something to settle
     # on this small net three rings around the wrong ropes are more than the share of the nodes
@@ -163,7 +163,7 @@ def test_settling_releases_a_chain_of_barely_taut_ropes(monkeypatch):
 
     def step():
         solver = SPDSolve("cholesky", system.free.size)
-        p, _ = engage_slack_ropes(system, ropes, solver, A, r, q, 1e-12, None, graph=NodeGraph(system))
+        p, _ = engage_slack_ropes(SlackRopeModel(system, ropes, graph=NodeGraph(system)), solver, A, r, q, 1e-12, None)
         return p, _released(system, ropes, q, p)
 
     p, released = step()

@@ -7,6 +7,7 @@ import pytest
 from shellform.solvers.relaxation import Refinements, energy_change, implicit, nodal_masses, patch_steps, relax
 from shellform.solvers.relaxation.line_search import ARMIJO
 from shellform.solvers.relaxation.patch import NodeGraph, patchable
+from shellform.solvers.relaxation.patch_steps import PatchContext
 
 from test_relaxation import small_net
 from test_relaxation_patch import _state
@@ -18,11 +19,11 @@ def repairs(monkeypatch):
     calls = []
     original = patch_steps.repair_full_step
 
-    def recording(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor):
-        out = original(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor)
+    def recording(ctx, q, p, r1, dE1, slope, h):
+        out = original(ctx, q, p, r1, dE1, slope, h)
         # copies: the front sweeps that follow a step move its state and residual in place
         kept = None if out is None else (out[0].copy(), out[1].copy()) + tuple(out[2:])
-        calls.append((system, q.copy(), p.copy(), dE1, slope, kept))
+        calls.append((ctx.system, q.copy(), p.copy(), dE1, slope, kept))
         return out
 
     monkeypatch.setattr(implicit, "repair_full_step", recording)
@@ -73,7 +74,8 @@ def test_a_sweep_lowers_the_potential_moves_only_the_patch_and_keeps_the_residua
     st = type("St", (), {"m": st_m, "damping": 0.0})()
     r = system.residual(q)[free]
     q1 = q.copy()
-    steps = patch_steps.sweep_fronts(system, graph, st, q1, r, 1e3, system.external_force(), 0.0, 0.0)
+    steps = patch_steps.sweep_fronts(PatchContext(system, graph, st.m, st.damping, system.external_force(), 0.0),
+                                     q1, r, 1e3, 0.0)
     assert steps >= 1
     assert energy_change(system, q, q1) < 0
     acc = lambda res: np.linalg.norm((res / st_m).reshape(-1, 3), axis=1).max()

@@ -10,6 +10,8 @@ wrong by semismooth Newton on the patch of nodes around them.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -17,10 +19,33 @@ from ...effects.axial import two_node_blocks
 from ...effects.base import scatter
 from ..linear import CholeskyFactor, SingularMatrixError
 from .linalg import with_values
+from .patch import NodeGraph
 from .ropes import end_difference, engaged_blocks, linearised, stretched_by
 
 
-def engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds=2, graph=None):
+@dataclass(frozen=True)
+class SlackRopeModel:
+    """The ropes whose slack state a step's model follows, and how far :func:`engage_slack_ropes` goes.
+
+    Attributes
+    ----------
+    system : System
+    ropes : list
+        The System's tension-only rope effects.
+    graph : NodeGraph, optional
+        The net's node graph: with it, the step is settled on the patches around
+        the ropes whose state it still gets wrong (:func:`settle_slack_set`).
+    rounds : int
+        Solves after the first one that update the set of engaged ropes.
+    """
+
+    system: object
+    ropes: list
+    graph: NodeGraph | None = None
+    rounds: int = 2
+
+
+def engage_slack_ropes(model: SlackRopeModel, solver, A, r, q, eta, engaged=None):
     """The pseudo-time step with the slack ropes it would stretch modelled as taut springs.
 
     The step's model treats a slack rope as absent, so a step that pulls one
@@ -30,14 +55,15 @@ def engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds
     the step lengthens past their rest length to first order join the model
     (:func:`~.ropes.engaged_terms`), the step is solved
     again, and the set is updated until it stops changing or after
-    ``rounds`` more solves. ``engaged`` (a mask per rope effect, e.g. the
+    ``model.rounds`` more solves. ``engaged`` (a mask per rope effect, e.g. the
     previous step's final set) is where the set starts; ropes taut by now
-    leave it. With a ``graph``, the step is then settled on the nodes around
+    leave it. With the model's ``graph``, the step is then settled on the nodes around
     the ropes whose state it still gets wrong (:func:`settle_slack_set`):
     slack ropes when the rounds end with a set that still changes, and taut
     ropes that the step shortens below their rest length, which the rounds
     do not model. Returns the step and its final set (None when empty).
     """
+    system, ropes, graph = model.system, model.ropes, model.graph
     free = system.free
     dq = np.zeros(system.n_dof)
     # the ropes' linear model at q serves every round and the settling: q does not change here
@@ -48,7 +74,7 @@ def engage_slack_ropes(system, ropes, solver, A, r, q, eta, engaged=None, rounds
             engaged = None
     p = None
     settled = False
-    for _ in range(rounds + 1):
+    for _ in range(model.rounds + 1):
         used = engaged
         if engaged is None:
             p = solver.solve(A, -r, eta)

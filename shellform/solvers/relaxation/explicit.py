@@ -14,7 +14,7 @@ import numpy as np
 
 from ...errors import ModelError
 from .bounds import bound_step
-from .monitor import Monitor, converged_message, limit_message, not_finite_message
+from .monitor import NOT_MEASURED, Monitor, converged_message, limit_message, not_finite_message
 
 
 def explicit_step_size(system, st, dt, scheme):
@@ -49,19 +49,19 @@ def run_rk4(system, st, options, callback, t0):
     vf = st.v0.copy()
     qf_prev, vf_prev = qf, vf
     t = 0.0
-    vmax = amax = rnorm = np.nan
+    seen = NOT_MEASURED
     for it in range(max_it + 1):
         a1, r = acc(qf, vf)
-        vmax, amax, rnorm = mon.measure(vf, r, a1)
+        vmax, amax, rnorm = seen = mon.measure(vf, r, a1)
         if not (np.isfinite(amax) and np.isfinite(vmax)) or np.max(np.abs(qf)) > L_big:
-            return mon.finish(qf_prev, vf_prev, False, not_finite_message(it, h), it, t, h, np.nan, np.nan, np.nan)
+            return mon.finish(qf_prev, vf_prev, False, not_finite_message(it, h), it, t, h, NOT_MEASURED)
         if mon.converged(vmax, amax):
-            return mon.finish(qf, vf, True, converged_message(mon, it, vmax, amax), it, t, h, vmax, amax, rnorm)
+            return mon.finish(qf, vf, True, converged_message(mon, it, vmax, amax), it, t, h, seen)
         if it == max_it:
             break
         stop = mon.tick(it, t, vmax, amax, rnorm, qf, vf)
         if stop:
-            return mon.finish(qf, vf, False, stop, it, t, h, vmax, amax, rnorm)
+            return mon.finish(qf, vf, False, stop, it, t, h, seen)
         qf_prev, vf_prev = qf, vf
         v2 = vf + 0.5 * h * a1
         a2, _ = acc(qf + 0.5 * h * vf, v2)
@@ -72,7 +72,7 @@ def run_rk4(system, st, options, callback, t0):
         qf = qf + (h / 6.0) * (vf + 2.0 * v2 + 2.0 * v3 + v4)
         vf = vf + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
         t += h
-    return mon.finish(qf, vf, False, limit_message(mon, max_it, vmax, amax), max_it, t, h, vmax, amax, rnorm)
+    return mon.finish(qf, vf, False, limit_message(mon, max_it, seen.vmax, seen.amax), max_it, t, h, seen)
 
 
 def run_kinetic(system, st, options, callback, t0):
@@ -92,20 +92,19 @@ def run_kinetic(system, st, options, callback, t0):
     r = force(qf)
     ke_prev = 0.5 * float(np.dot(m * v, v))
     t = 0.0
-    vmax = amax = rnorm = np.nan
+    seen = NOT_MEASURED
     for it in range(max_it + 1):
         a = -r / m
-        vmax, amax, rnorm = mon.measure(v, r, a)
+        vmax, amax, rnorm = seen = mon.measure(v, r, a)
         if not (np.isfinite(amax) and np.isfinite(vmax)) or np.max(np.abs(qf)) > L_big:
-            return mon.finish(qf_prev, np.zeros_like(qf), False, not_finite_message(it, h), it, t, h,
-                              np.nan, np.nan, np.nan)
+            return mon.finish(qf_prev, np.zeros_like(qf), False, not_finite_message(it, h), it, t, h, NOT_MEASURED)
         if mon.converged(vmax, amax):
-            return mon.finish(qf, v, True, converged_message(mon, it, vmax, amax), it, t, h, vmax, amax, rnorm)
+            return mon.finish(qf, v, True, converged_message(mon, it, vmax, amax), it, t, h, seen)
         if it == max_it:
             break
         stop = mon.tick(it, t, vmax, amax, rnorm, qf, v)
         if stop:
-            return mon.finish(qf, v, False, stop, it, t, h, vmax, amax, rnorm)
+            return mon.finish(qf, v, False, stop, it, t, h, seen)
         qf_prev = qf
         v_new = v + h * a
         q_new = qf + h * v_new
@@ -122,4 +121,4 @@ def run_kinetic(system, st, options, callback, t0):
             ke_prev = ke
         r = force(qf)
         t += h
-    return mon.finish(qf, v, False, limit_message(mon, max_it, vmax, amax), max_it, t, h, vmax, amax, rnorm)
+    return mon.finish(qf, v, False, limit_message(mon, max_it, seen.vmax, seen.amax), max_it, t, h, seen)

@@ -19,14 +19,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..linear import SingularMatrixError
-from .active_set import engage_slack_ropes
+from .active_set import SlackRopeModel, engage_slack_ropes
 from .force_density import force_density_start
 from .line_search import energy_change, line_search, sufficient_decrease
 from .linalg import SPDSolve, diagonal_positions, with_values
-from .monitor import Monitor, converged_message, limit_message
+from .monitor import Measures, Monitor, converged_message, limit_message
 from .options import RelaxationOptions
 from .patch import NodeGraph, patchable
-from .patch_steps import repair_full_step, sweep_fronts
+from .patch_steps import PatchContext, repair_full_step, sweep_fronts
 from .ropes import rope_effects, switch_model_change
 from .stiffness import STAGE_TOLERANCE, continuation_scales, with_stiffness_scale
 
@@ -83,6 +83,15 @@ class Stage:
         self.mon.n_res += 1
         return self.system.residual(q, self.lam)[self.system.free]
 
+    def slack_model(self) -> SlackRopeModel:
+        """The stage's ropes for the active set, settled on patches where the stage settles."""
+        return SlackRopeModel(self.system, self.ropes, graph=self.graph if self.settling else None)
+
+    def patches(self) -> PatchContext:
+        """What the stage's front sweeps and step repairs share."""
+        st = self.mon.st
+        return PatchContext(self.system, self.graph, st.m, st.damping, self.f_ext, self.e_floor, self.ropes)
+
 
 @dataclass
 class StepState:
@@ -126,10 +135,7 @@ def run_implicit(system, st, options: RelaxationOptions, callback, t0, fd_start=
     for k, scale in enumerate(scales):
         last = k == len(scales) - 1
         view = system if scale == 1.0 else with_stiffness_scale(system, scale)
-        # intermediate stages only need to land near their equilibrium
-        a_tol = st.a_tol if last else max(st.a_tol, STAGE_TOLERANCE * st.g_ref)
-        v_tol = st.v_tol if last else np.inf
-        stage = _stage(view, mon, solver, q, lam, a_tol, v_tol, options, graph)
+        stage = _stage(view, mon, solver, q, options, graph, last)
         out = pseudo_transient(stage, q, h, run)
         q, h = out.q, out.h
         mon.n_fact = solver.factorizations
@@ -140,14 +146,18 @@ def run_implicit(system, st, options: RelaxationOptions, callback, t0, fd_start=
             if not last:
                 message = f"stiffness stage {k + 1} of {len(scales)} (EA x {scale:.1e}): {message}"
             return mon.finish(q[free], out.v, out.success, message, run.iterations, run.time, h,
-                              out.vmax, out.amax, out.rnorm)
+                              Measures(out.vmax, out.amax, out.rnorm))
         # a stiffer net moves little from here: restart with a moderate pseudo step
         h = min(h, np.sqrt(st.L_ref / st.g_ref))
 
 
-def _stage(system, mon, solver, q, lam, a_tol, v_tol, options, graph) -> Stage:
-    """The fixed parts of a stage on ``system`` (one stiffness scale) starting at ``q``."""
-    st, ref = mon.st, options.refinements
+def _stage(system, mon, solver, q, options, graph, last: bool) -> Stage:
+    """The fixed parts of a stage on ``system`` (one stiffness scale) starting at ``q``; the ``last``
+    stage is the unscaled net."""
+    st, ref, lam = mon.st, options.refinements, options.lam
+    # intermediate stages only need to land near their equilibrium
+    a_tol = st.a_tol if last else max(st.a_tol, STAGE_TOLERANCE * st.g_ref)
+    v_tol = st.v_tol if last else np.inf
     f_ext = system.external_force(lam)
     stage = Stage(system=system, mon=mon, solver=solver, lam=lam, a_tol=a_tol, v_tol=v_tol,
                   max_it=options.iteration_limit, ropes=rope_effects(system) if ref.slack_active_set else [],
@@ -214,8 +224,7 @@ def _direction(stage: Stage, s: StepState, run: Stages):
     eta = min(1e-2, max(1e-10, float(np.sqrt(s.rnorm / stage.f_scale))))
     try:
         if stage.ropes:
-            p, s.engaged = engage_slack_ropes(system, stage.ropes, stage.solver, A, s.r, s.q, eta, s.engaged,
-                                              graph=stage.graph if stage.settling else None)
+            p, s.engaged = engage_slack_ropes(stage.slack_model(), stage.solver, A, s.r, s.q, eta, s.engaged)
         else:
             p = stage.solver.solve(A, -s.r, eta)
     except SingularMatrixError:
@@ -264,8 +273,7 @@ def _advance(stage: Stage, s: StepState, p, slope, pred) -> Taken | None:
     # only a full step that the line search would cut
     if stage.repair and stage.graph is not None and stage.ropes and not tiny and np.all(np.isfinite(r1)) \
             and np.isfinite(dE1) and not sufficient_decrease(dE1, d1, slope):
-        repaired = repair_full_step(system, stage.graph, mon.st, stage.ropes, q, p, r1, dE1, slope, s.h,
-                                    stage.f_ext, stage.e_floor)
+        repaired = repair_full_step(stage.patches(), q, p, r1, dE1, slope, s.h)
     if repaired is not None:
         q_new, r_try, dE, excess = repaired
         mon.n_repaired += 1
@@ -295,5 +303,4 @@ def _accept(stage: Stage, s: StepState, run: Stages, step: Taken) -> None:
         # a partial step is progress; only a poor quadratic model shortens the pseudo step
         s.h *= 0.5
     if stage.graph is not None and stage.sweeps:
-        stage.mon.n_local += sweep_fronts(stage.system, stage.graph, stage.mon.st, s.q, s.r, s.h, stage.f_ext,
-                                          stage.a_tol, stage.e_floor)
+        stage.mon.n_local += sweep_fronts(stage.patches(), s.q, s.r, s.h, stage.a_tol)

@@ -3,11 +3,24 @@
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numpy as np
 
 from .bounds import nodal_max
 from .result import RelaxationProgress, RelaxationResult
+
+
+class Measures(NamedTuple):
+    """How far a state is from rest: the largest nodal speed and acceleration, and the residual norm."""
+
+    vmax: float
+    amax: float
+    rnorm: float
+
+
+#: the measures of a state that could not be measured (it is no longer finite)
+NOT_MEASURED = Measures(np.nan, np.nan, np.nan)
 
 
 class Monitor:
@@ -25,11 +38,11 @@ class Monitor:
         self.n_repaired = 0
         self.rejected = 0
 
-    def measure(self, v_free, r_free, a_free=None):
+    def measure(self, v_free, r_free, a_free=None) -> Measures:
         """Nodal maxima; the acceleration is ``-r / m`` unless given."""
         vmax = nodal_max(self.system, v_free)
         amax = nodal_max(self.system, (-r_free / self.st.m) if a_free is None else a_free)
-        return vmax, amax, float(np.linalg.norm(r_free))
+        return Measures(vmax, amax, float(np.linalg.norm(r_free)))
 
     def converged(self, vmax, amax) -> bool:
         return vmax <= self.st.v_tol and amax <= self.st.a_tol
@@ -54,12 +67,13 @@ class Monitor:
             return f"not converged within the wall-time limit of {self.max_wall_time:g} s ({it} iterations)"
         return None
 
-    def finish(self, q_free, v_free, success, message, it, t, h, vmax, amax, rnorm):
+    def finish(self, q_free, v_free, success, message, it, t, h, measures: Measures) -> RelaxationResult:
+        """The result of a run that ends at ``(q_free, v_free)`` after ``it`` iterations, at time ``t``."""
         q = self.full(q_free, self.st.q)  # constrained DOFs at their prescribed values
         v = self.full(v_free)
         return RelaxationResult(
             q=q, v=v, success=success, message=message, scheme=self.scheme, iterations=it,
-            max_velocity=vmax, max_acceleration=amax, residual_norm=rnorm,
+            max_velocity=measures.vmax, max_acceleration=measures.amax, residual_norm=measures.rnorm,
             velocity_tol=self.st.v_tol, acceleration_tol=self.st.a_tol, time=t, time_step=h,
             wall_time_s=time.perf_counter() - self.t0, reactions=self.system.reactions(q, self.lam),
             residual_evaluations=self.n_res, factorizations=self.n_fact, rejected_steps=self.rejected,

@@ -10,14 +10,47 @@ the whole net's, on the whole net's potential.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 import scipy.sparse as sp
 
 from ..linear import CholeskyFactor, SingularMatrixError
 from .bounds import nodal_norms
 from .line_search import ARMIJO, line_search
-from .patch import Patch
+from .patch import NodeGraph, Patch
 from .ropes import model_excess
+
+
+@dataclass(frozen=True)
+class PatchContext:
+    """What the patch steps of one stiffness stage share.
+
+    Attributes
+    ----------
+    system : System
+        The stage's net.
+    graph : NodeGraph
+        Its node graph, which finds the patches.
+    m : ndarray
+        The masses of the free DOFs.
+    damping : float
+        Mass-proportional damping of the pseudo-time steps [1/s].
+    f_ext : ndarray (n_dof,)
+        The applied forces at the load factor of the analysis.
+    e_floor : float
+        Changes of the potential below this are round-off.
+    ropes : list
+        The tension-only members whose excess over a step's model a repair looks at.
+    """
+
+    system: object
+    graph: NodeGraph
+    m: np.ndarray
+    damping: float
+    f_ext: np.ndarray
+    e_floor: float
+    ropes: list = field(default_factory=list)
 
 
 #: a front sweep runs while the nodes above FRONT_LEVEL times the largest nodal
@@ -29,7 +62,7 @@ FRONT_RINGS = 4
 FRONT_STEPS = 3
 
 
-def sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
+def sweep_fronts(ctx: PatchContext, q, r, h, a_tol) -> int:
     """Newton steps on the patches around the few nodes that hold a relaxation back.
 
     Late in a relaxation the out-of-balance force sits at a few nodes along
@@ -46,12 +79,13 @@ def sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
     undo. ``q`` and ``r`` (free DOFs) are updated in place, ``r`` exactly
     from the patch's members. Returns the number of steps kept.
     """
+    system, graph = ctx.system, ctx.graph
     free_index = graph.free_index
     steps = 0
     undo = None
     a_last = np.inf
     for _ in range(FRONT_STEPS + 1):
-        acc = nodal_norms(system, r / st.m)
+        acc = nodal_norms(system, r / ctx.m)
         amax = float(acc.max())
         if undo is not None and not amax < a_last:
             # the potential fell, but the imbalance grew: the patch's step set up ropes
@@ -67,12 +101,12 @@ def sweep_fronts(system, graph, st, q, r, h, f_ext, a_tol, e_floor) -> int:
         hot = np.flatnonzero(acc > FRONT_LEVEL * amax)
         if hot.size > FRONT_SHARE * graph.n_free_nodes:
             break
-        patch = Patch(system, graph, graph.within(hot, FRONT_RINGS), f_ext)
+        patch = Patch(system, graph, graph.within(hot, FRONT_RINGS), ctx.f_ext)
         if not patch.n_moving:
             break
         moving = patch.dofs[patch.moving]
         ql = q[patch.dofs]
-        step = patch_step(patch, st.m[free_index[moving]], ql, h, st.damping, e_floor)
+        step = patch_step(patch, ctx.m[free_index[moving]], ql, h, ctx.damping, ctx.e_floor)
         if step is None:
             break
         q1 = step[0]
@@ -132,7 +166,7 @@ REPAIR_PATCH = 0.03
 REPAIR_STEPS = 8
 
 
-def repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e_floor):
+def repair_full_step(ctx: PatchContext, q, p, r1, dE1, slope, h):
     """The full step, with the patch around the few ropes that make it overshoot relaxed from there.
 
     The line search often cuts the whole net's step for the sake of a few
@@ -155,6 +189,7 @@ def repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e
     the change of potential from ``q`` and the repaired ropes' excess -- or
     None when the excess is not local or the patch does not make up for it.
     """
+    system, graph, ropes = ctx.system, ctx.graph, ctx.ropes
     free = system.free
     dq = np.zeros(system.n_dof)
     dq[free] = p
@@ -169,7 +204,7 @@ def repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e
         return None
     worst = order[:count]
     conn = np.concatenate([e.conn for e in ropes])
-    patch = Patch(system, graph, graph.within(np.unique(conn[worst]), REPAIR_RINGS), f_ext)
+    patch = Patch(system, graph, graph.within(np.unique(conn[worst]), REPAIR_RINGS), ctx.f_ext)
     if not 0 < patch.n_moving <= REPAIR_PATCH * free.size:
         return None
     q1 = q.copy()
@@ -177,13 +212,13 @@ def repair_full_step(system, graph, st, ropes, q, p, r1, dE1, slope, h, f_ext, e
     ql0 = q1[patch.dofs]
     ql = ql0
     inside = graph.free_index[patch.dofs[patch.moving]]
-    m = st.m[inside]
+    m = ctx.m[inside]
     outside = np.ones(free.size, dtype=bool)
     outside[inside] = False
-    a_out = float(np.max(np.abs(r1[outside]) / st.m[outside], initial=0.0))
+    a_out = float(np.max(np.abs(r1[outside]) / ctx.m[outside], initial=0.0))
     dE = dE1
     for _ in range(REPAIR_STEPS):
-        step = patch_step(patch, m, ql, h, st.damping, e_floor)
+        step = patch_step(patch, m, ql, h, ctx.damping, ctx.e_floor)
         if step is None:
             break
         ql, change = step
