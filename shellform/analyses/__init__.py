@@ -23,7 +23,8 @@ from ..io.checkpoint import CheckpointMismatch
 from ..io.files import output_folder, output_lock, remove_stale_temporaries, write_bytes
 from ..io.summary import RunRecord
 from ..io.units import units_block
-from .common import Progress, quiet
+from ..io.log import RunLog
+from ..progress import Progress, quiet, tee
 from .continuation import run_continuation, run_continuation_case
 from .dynamics import run_dynamics
 from .form_and_buckle import run_form_and_buckle
@@ -55,6 +56,7 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
     ``out_dir``.
 
     The output folder is locked for the run: a second run into it is refused.
+    Every progress message is also appended to ``run.log`` there.
 
     Raises
     ------
@@ -64,8 +66,9 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
     progress = progress or quiet
     kind = scene["analysis"]["type"]
     stages = STAGES[kind]
-    with output_lock(output_folder(out_dir)) as out:
+    with output_lock(output_folder(out_dir)) as out, RunLog(out / "run.log") as log:
         remove_stale_temporaries(out)  # of a run killed while writing: no one else writes here now
+        progress = tee(log, progress)
         t0 = time.perf_counter()
         record = RunRecord(out / "summary.json", {"title": scene["title"], "analysis": kind}, stages)
         last = out / "summary.json"

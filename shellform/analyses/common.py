@@ -10,11 +10,7 @@ import numpy as np
 from .. import scene as scenes
 from ..io import write_series, write_state
 
-Progress = Callable[[str], None]
-
-
-def quiet(message: str) -> None:
-    pass
+from ..progress import Progress
 
 
 def model_sizes(structure, system) -> dict:

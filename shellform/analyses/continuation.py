@@ -12,7 +12,8 @@ from .. import scene as scenes
 from ..io import write_json, write_mode, write_series
 from ..io.table import plot_path, write_path_csv
 from ..model import AXES
-from .common import Progress, build_scene_model, model_sizes, plot_or_note, series_time, write_final_state
+from ..progress import Progress, Status, indented
+from .common import build_scene_model, model_sizes, plot_or_note, series_time, write_final_state
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,18 @@ class PathPlot:
     ylabel: str | None = None
     title: str | None = None
     event_x: Callable | None = None
+
+
+def path_fraction(point, options: dict) -> float:
+    """How far a path has got: the larger of the steps taken and the parameter's way to its upper bound."""
+    from ..solvers.continuation import ContinuationOptions
+
+    max_steps = options.get("max_steps", ContinuationOptions.max_steps)
+    fraction = point.step / max_steps
+    upper = (options.get("parameter_bounds") or (None, None))[1]
+    if upper is not None and np.isfinite(upper) and upper > 0:
+        fraction = max(fraction, point.parameter / upper)
+    return fraction
 
 
 def run_continuation_case(
@@ -98,11 +111,10 @@ def run_continuation_case(
 
     def on_point(pt):
         if progress is not None:
-            progress(
+            progress(Status(
                 f"step {pt.step:4d}  branch {pt.branch}  parameter {pt.parameter: .6e}  load {pt.load: .6e}  "
                 f"displacement {pt.displacement: .6e}  negative eigenvalues {pt.n_negative}  "
-                f"iterations {pt.iterations}"
-            )
+                f"iterations {pt.iterations}", path_fraction(pt, options)))
         return callback(pt) if callback is not None else None
 
     result = trace_path(system, control, callback=on_point, checkpoint=Checkpoint(ck, checkpoint_every, resume),
@@ -179,7 +191,7 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
         f"effects: {', '.join(e.name for e in system.effects)}"
     )
     res, path_summary = run_continuation_case(
-        system, out, control, name="path", progress=lambda msg: progress("  " + msg), resume=resume,
+        system, out, control, name="path", progress=indented(progress), resume=resume,
         checkpoint_every=c["checkpoint_every"],
         plot=PathPlot("load_displacement.png", x=monitor or "displacement",
                       xlabel=f"displacement {monitor or ''} [m]".replace("  ", " "),

@@ -15,7 +15,8 @@ from ..io.checkpoint import (CheckpointMismatch, check_fingerprint, fingerprint_
                             model_fingerprint, save_checkpoint)
 from ..io.table import plot_curve, write_csv
 from ..model import AXES
-from .common import Progress, build_scene_model, plot_or_note, model_sizes, write_final_state
+from ..progress import Progress
+from .common import build_scene_model, plot_or_note, model_sizes, write_final_state
 
 
 DYNAMICS_CHECKPOINT = "dynamics_checkpoint.npz"

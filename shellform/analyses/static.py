@@ -8,7 +8,8 @@ import numpy as np
 
 from .. import scene as scenes
 from ..solvers import solve_static
-from .common import Progress, build_scene_model, model_sizes, write_final_state
+from ..progress import Progress, Status
+from .common import build_scene_model, model_sizes, write_final_state
 
 
 def run_static(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
@@ -22,7 +23,7 @@ def run_static(scene: dict, out: Path, progress: Progress, resume: bool = False)
     res = solve_static(
         system, q0=scenes.scene_start_state(scene, structure), lam=a["load_factor"], mu=a["prescribed"], rtol=a["rtol"],
         max_iter=a["max_iterations"], merit=a["merit"], linear_solver=a["linear_solver"],
-        callback=lambda it, norm: progress(f"  iteration {it:3d}  |r| = {norm:.3e}"),
+        callback=lambda it, norm: progress(Status(f"  iteration {it:3d}  |r| = {norm:.3e}")),
     )
     progress(res.message)
     files = write_final_state(scene, out, system, res.q, a["load_factor"])
