@@ -8,6 +8,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import SceneError, ShellformError
+from .progress import Console
 
 DEFAULT_SCENE = "default"
 
@@ -38,16 +39,25 @@ def _scene_path(arg: str | None) -> Path:
         raise SceneError(arg, f"no such file and no built-in scene of that name; built-in: {', '.join(builtin_scenes())}")
 
 
+def _verbosity(args) -> int:
+    return 0 if args.quiet else 2 if args.verbose else 1
+
+
 def _cmd_run(args) -> int:
     from .analyses import run_scene
     from .scene import load_scene
 
     path = _scene_path(args.scene)
     scene = load_scene(path)
-    progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
-    progress(f"scene: {path}")
-    summary = run_scene(scene, args.out, progress, resume=args.resume)
-    progress(f"results in {Path(args.out).resolve()} ({summary['wall_time_s']:.2f} s)")
+    console = Console(_verbosity(args))
+    console(f"scene: {path}")
+    try:
+        summary = run_scene(scene, args.out, console, resume=args.resume)
+    finally:
+        console.close()
+    for note in summary.get("warnings", []):
+        console(f"warning: {note}")
+    console(f"results in {Path(args.out).resolve()} ({summary['wall_time_s']:.2f} s; log in run.log)")
     return 0 if summary.get("converged", False) else 1
 
 
@@ -65,11 +75,16 @@ def _cmd_validate(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from .sweep import run_sweep
+    from .sweep import SweepOptions, run_sweep
 
     progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
-    rows = run_sweep(args.scene, args.param, args.out, scheduler=args.scheduler, workers=args.workers,
-                     progress=progress, plot_y=args.plot)
+    options = SweepOptions(workers=args.workers, scheduler=args.scheduler, rerun=args.rerun, plot_y=args.plot)
+    try:
+        rows = run_sweep(args.scene, args.param, args.out, progress=progress, options=options)
+    except KeyboardInterrupt:
+        print(f"shellform: interrupted; the finished cases are in {Path(args.out).resolve() / 'sweep.csv'}, and "
+              "the same command runs the rest", file=sys.stderr)
+        return 130
     progress(f"table: {Path(args.out).resolve() / 'sweep.csv'}")
     return 0 if all(r.get("converged", False) for r in rows) else 1
 
@@ -92,7 +107,9 @@ def main(argv=None) -> int:
     run.add_argument("scene", nargs="?", help="scene TOML file or the name of a built-in scene "
                      "(default: the built-in default scene)")
     run.add_argument("--out", default="results", help="output directory (default: ./results)")
-    run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    run.add_argument("-v", "--verbose", action="store_true", help="every step and iteration on a line of its own "
+                     "(default: one status line that updates in place)")
     run.add_argument("--resume", action="store_true", help="continue an interrupted continuation, relaxation or "
                      "time stepping from its checkpoint in DIR")
     run.set_defaults(func=_cmd_run)
@@ -101,14 +118,19 @@ def main(argv=None) -> int:
     val.add_argument("--out", default="validation-report", help="output directory (default: ./validation-report)")
     val.add_argument("--quiet", action="store_true", help="no progress output")
     val.set_defaults(func=_cmd_validate)
-    sw = sub.add_parser("sweep", help="run a parameter study in parallel with Dask")
+    sw = sub.add_parser("sweep", help="run a parameter study: one scene, many values, one table")
     sw.add_argument("scene", help="base scene TOML file")
     sw.add_argument("--param", action="append", required=True, metavar="KEY=V1,V2,...",
                     help="scene key path and its values, e.g. members[0].EA=1e3,1e4 (repeatable: all combinations)")
-    sw.add_argument("--out", default="sweep", help="output directory (default: ./sweep)")
-    sw.add_argument("--scheduler", default=None, help="Dask scheduler address (default: a local cluster)")
-    sw.add_argument("--workers", type=int, default=2, help="local cluster processes (default: 2)")
-    sw.add_argument("--plot", default=None, help="summary entry to plot against the first parameter")
+    sw.add_argument("--out", default="sweep", help="output directory (default: ./sweep); a sweep run again into "
+                    "it keeps the cases that finished")
+    sw.add_argument("--workers", type=int, default=2, help="local processes (default: 2; 1 runs the cases in "
+                    "this process)")
+    sw.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the cases on this Dask scheduler "
+                    "instead (needs the extra shellform[sweep])")
+    sw.add_argument("--rerun", action="store_true", help="run every case again, also those finished before")
+    sw.add_argument("--plot", default=None, help="summary entry to plot against the first parameter, e.g. "
+                    "buckling.critical_load_factor")
     sw.add_argument("--quiet", action="store_true", help="no progress output")
     sw.set_defaults(func=_cmd_sweep)
     schema = sub.add_parser("schema", help="print the scene reference (Markdown)")

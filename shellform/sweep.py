@@ -1,132 +1,161 @@
-"""Parameter studies: one scene, many values, run in parallel with Dask.
+"""Parameter studies: one scene, many values, each case in its own folder, one table of them all.
 
 ``shellform sweep SCENE.toml --param members[0].EA=1e3,1e4 --param analysis.load_factor=1,2``
-runs every combination (Cartesian product) as its own scene in its own
-directory, on a local Dask cluster or on any scheduler given by address, and
-gathers one table (``sweep.csv``, ``sweep.json``) and a plot (``sweep.png``).
-Dask is an optional extra (``pip install shellform[sweep]``).
+runs every combination (Cartesian product) as its own scene in ``case_NNN/``
+and gathers one table (``sweep.csv``, ``sweep.json``) and a plot (``sweep.png``).
+
+Where the cases run:
+
+- ``workers=1``: one after the other in this process;
+- ``workers=N``: on a pool of N processes started afresh (``spawn``: no
+  state, lock or thread of this process is copied into a worker);
+- ``scheduler=ADDRESS``: on a Dask cluster (the optional extra
+  ``pip install shellform[sweep]``; Dask is imported only then).
+
+The table is rewritten as each case finishes, so a sweep that is killed
+keeps the rows of the cases done. Running the sweep again into the same
+folder reuses every case whose folder holds a finished ``summary.json`` of
+the same scene (``case_NNN/sweep_case.json`` records which), and runs the
+rest. A case that fails is a row with ``status = failed`` and the message;
+the other cases go on.
 """
 
 from __future__ import annotations
 
-import copy
-import itertools
-import re
+import json
 import sys
-import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SceneError
 from .io.files import output_folder, output_lock
+from .sweep_cases import Case, expand, parse_param, parse_path, set_value
+from .sweep_table import SweepTable, scalars
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+__all__ = ["SweepOptions", "run_sweep", "run_case", "parse_param", "parse_path", "set_value", "scalars"]
+
+#: the file in a case folder that names the scene the case computes
+CASE_FILE = "sweep_case.json"
+
+Progress = Callable[[str], None]
 
 
-def parse_path(key: str) -> list:
-    """``"members[0].EA"`` -> ``["members", 0, "EA"]``."""
-    parts, pos = [], 0
-    key = key.strip()
-    for m in _TOKEN.finditer(key):
-        if m.start() != pos and key[pos:m.start()] != ".":
-            raise SceneError(key, "not a valid key path (use dotted names and [index], e.g. members[0].EA)")
-        parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
-        pos = m.end()
-    if not parts or pos != len(key):
-        raise SceneError(key, "not a valid key path (use dotted names and [index], e.g. members[0].EA)")
-    return parts
+@dataclass
+class SweepOptions:
+    """Where and how the cases of a sweep run."""
+
+    #: local processes; 1 runs the cases in this process, one after the other
+    workers: int = 2
+    #: address of a Dask scheduler (``tcp://host:8786``); then ``workers`` is not used
+    scheduler: str | None = None
+    #: run every case again, also those a previous sweep into the folder finished
+    rerun: bool = False
+    #: summary entry to plot against the first parameter (default: see ``sweep_table.DEFAULT_PLOT``)
+    plot_y: str | None = None
+
+    def __post_init__(self):
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise SceneError("--workers", f"the number of worker processes must be a whole number >= 1, "
+                                          f"got {self.workers!r}")
 
 
-def parse_param(spec: str) -> tuple[str, list]:
-    """``"key=v1,v2,..."`` -> (key, [values]); values are read as TOML values."""
-    if "=" not in spec:
-        raise SceneError(spec, "a sweep parameter is written key=v1,v2,...")
-    key, text = spec.split("=", 1)
-    parse_path(key)
-    values = []
-    for item in text.split(","):
-        try:
-            values.append(tomllib.loads(f"v = {item.strip()}")["v"])
-        except tomllib.TOMLDecodeError:
-            values.append(item.strip())  # a bare word is a string
-    if not values or values == [""]:
-        raise SceneError(key, "needs at least one value")
-    return key.strip(), values
+def run_case(data: dict, out_dir: str, base_dir: str) -> dict:
+    """Run one scene and return its summary; a failure is returned as a summary, not raised.
 
-
-def set_value(data: dict, key: str, value) -> None:
-    """Set ``value`` at the key path ``key`` of a raw scene dictionary."""
-    parts = parse_path(key)
-    node = data
-    for i, p in enumerate(parts[:-1]):
-        try:
-            node = node[p]
-        except (KeyError, IndexError, TypeError):
-            where = "".join(f"[{q}]" if isinstance(q, int) else f".{q}" for q in parts[: i + 1]).lstrip(".")
-            raise SceneError(key, f"the scene has no {where!r} to set a value in") from None
-    try:
-        node[parts[-1]] = value
-    except (IndexError, TypeError):
-        raise SceneError(key, "the scene has no such entry") from None
-
-
-def expand(raw: dict, params: list[tuple[str, list]], base_dir=None) -> list[tuple[dict, dict]]:
-    """All combinations as (assignment, scene) pairs; each scene is validated now.
-
-    ``base_dir`` is the folder relative file names of the scene are relative to.
+    Module-level so that a spawned worker or a Dask worker finds it by name.
     """
-    from .scene import parse_scene
-
-    out = []
-    keys = [k for k, _ in params]
-    for combo in itertools.product(*(v for _, v in params)):
-        data = copy.deepcopy(raw)
-        for k, v in zip(keys, combo):
-            set_value(data, k, v)
-        assignment = dict(zip(keys, combo))
-        try:
-            parse_scene(data, base_dir)
-        except SceneError as exc:
-            raise SceneError(exc.key, f"{exc.problem} (in the sweep case {assignment})") from None
-        out.append((assignment, data))
-    return out
-
-
-def _run_case(data: dict, out_dir: str, base_dir: str) -> dict:
-    """Run one scene (in a worker) and return its summary; failures are reported, not raised."""
     from .analyses import run_scene
     from .scene import parse_scene
 
     try:
         return run_scene(parse_scene(data, base_dir), out_dir)
     except Exception as exc:  # a worker must hand back a row, whatever happened
-        return {"converged": False, "message": f"{type(exc).__name__}: {exc}"}
+        return {"run_status": "failed", "converged": False, "message": f"{type(exc).__name__}: {exc}"}
 
 
-def _scalars(summary: dict, prefix: str = "") -> dict:
-    """The scalar entries of a summary, nested ones by their dotted path (the columns of the sweep table).
+def finished_summary(case: Case, folder: Path) -> dict | None:
+    """The summary of ``case`` a previous sweep finished in ``folder``, or None.
 
-    A form-and-buckle case's critical load factor is ``buckling.critical_load_factor``;
-    lists and arrays are left to the case's own files.
+    Only a ``summary.json`` with ``run_status = "finished"`` next to a
+    case file of the same scene counts: a folder of another case (the values
+    changed since) or of a run that was killed or failed is run again.
     """
-    out = {}
-    for k, v in summary.items():
-        if not prefix and k == "title":
-            continue
-        if isinstance(v, dict):
-            out.update(_scalars(v, f"{prefix}{k}."))
-        elif isinstance(v, (bool, int, float, str)):
-            out[f"{prefix}{k}"] = v
-    return out
+    try:
+        record = json.loads((folder / CASE_FILE).read_text())
+        summary = json.loads((folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if record.get("fingerprint") != case.fingerprint or not isinstance(summary, dict):
+        return None
+    return summary if summary.get("run_status") == "finished" else None
+
+
+def _mark(case: Case, folder: Path) -> None:
+    from .io import write_json
+
+    values = {k: v if isinstance(v, (bool, int, float, str)) else str(v) for k, v in case.assignment.items()}
+    write_json(folder / CASE_FILE, {"case": case.name, "assignment": values, "fingerprint": case.fingerprint})
+
+
+# -- where the cases run: each yields (case, summary) as the cases finish ------------
+
+
+def _in_process(cases: list[Case], out: Path) -> Iterator[tuple[Case, dict]]:
+    for case in cases:
+        yield case, run_case(case.data, str(out / case.name), case.base_dir)
+
+
+def _on_pool(cases: list[Case], out: Path, workers: int) -> Iterator[tuple[Case, dict]]:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        futures = {pool.submit(run_case, c.data, str(out / c.name), c.base_dir): c for c in cases}
+        for fut in as_completed(futures):
+            yield futures[fut], _result(fut)
+    finally:
+        # an interrupted sweep does not start the cases still queued
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _on_dask(cases: list[Case], out: Path, scheduler: str) -> Iterator[tuple[Case, dict]]:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise SceneError("--scheduler", "a Dask scheduler needs Dask: pip install 'shellform[sweep]'") from None
+    client = Client(scheduler)
+    try:
+        futures = {client.submit(run_case, c.data, str(out / c.name), c.base_dir, pure=False, key=f"sweep-{c.name}-"
+                                 f"{c.fingerprint[:12]}"): c for c in cases}
+        for fut in as_completed(futures):
+            yield futures[fut], _result(fut)
+    finally:
+        client.close()
+
+
+def _result(future) -> dict:
+    """A future's summary; a worker that died (killed, out of memory) makes a failed row."""
+    try:
+        return future.result()
+    except Exception as exc:  # noqa: BLE001 (the other cases go on)
+        return {"run_status": "failed", "converged": False,
+                "message": f"the worker running the case died: {type(exc).__name__}: {exc}"}
+
+
+# -- the sweep ----------------------------------------------------------------------
 
 
 def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = None, workers: int = 2,
-              progress=None, plot_y: str | None = None) -> list[dict]:
-    """Run a parameter study; returns one row per case.
+              progress: Progress | None = None, plot_y: str | None = None, rerun: bool = False,
+              options: SweepOptions | None = None) -> list[dict]:
+    """Run a parameter study; returns one row per case, in case order.
 
     Parameters
     ----------
@@ -134,17 +163,21 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
         The base scene.
     params : list of str
         ``key=v1,v2,...`` specifications.
-    scheduler : str, optional
-        Address of a Dask scheduler; default a local cluster of ``workers``
-        single-threaded processes.
-    plot_y : str, optional
-        Summary entry to plot against the first parameter (default: the
-        first of ``max_displacement``, ``rise``, ``iterations`` present).
+    out_dir : path-like
+        The sweep's folder: ``sweep.csv``, ``sweep.json``, ``sweep.png`` and one
+        ``case_NNN`` folder per case. It is locked while the sweep runs.
+    scheduler, workers, plot_y, rerun
+        See :class:`SweepOptions` (``options``, when given, is used instead).
+    progress : callable, optional
+        Called with one line per case as it finishes.
+
+    Raises
+    ------
+    SceneError
+        A bad key or value (before any case runs), or a ``plot_y`` that no
+        case summary has (after the table is written).
     """
-    try:
-        import dask.distributed  # noqa: F401
-    except ImportError:  # pragma: no cover
-        raise SceneError("sweep", "needs Dask: pip install 'shellform[sweep]'") from None
+    opts = options or SweepOptions(workers=workers, scheduler=scheduler, rerun=rerun, plot_y=plot_y)
     from .scene import load_scene
 
     progress = progress or (lambda msg: None)
@@ -152,56 +185,45 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
     load_scene(scene_path)  # the base scene must be valid on its own
     raw = tomllib.loads(scene_path.read_text())
     base_dir = str(scene_path.resolve().parent)
-    cases = expand(raw, [parse_param(p) for p in params], base_dir)
+    parsed = [parse_param(p) for p in params]
+    cases = expand(raw, parsed, base_dir)
     with output_lock(output_folder(out_dir)) as out:
-        return _sweep(cases, params, out, scene_path, base_dir, scheduler, workers, progress, plot_y)
+        table = SweepTable(out, [k for k, _ in parsed], len(cases))
+        _sweep(cases, out, table, opts, progress, scene_path)
+        table.plot(opts.plot_y, scene_path.stem, progress)
+        return table.ordered
 
 
-def _sweep(cases, params, out: Path, scene_path: Path, base_dir: str, scheduler, workers, progress, plot_y):
-    from dask.distributed import Client, LocalCluster
+def _sweep(cases: list[Case], out: Path, table: SweepTable, opts: SweepOptions, progress: Progress,
+           scene_path: Path) -> None:
+    todo = []
+    for case in cases:
+        folder = out / case.name
+        summary = None if opts.rerun else finished_summary(case, folder)
+        if summary is not None:
+            table.add(case, summary, kept=True)
+            progress(f"  {case.name} {case.assignment}: finished before, kept")
+            continue
+        output_folder(folder)
+        _mark(case, folder)
+        todo.append(case)
+    where = (f"on {opts.scheduler}" if opts.scheduler else
+             "in this process" if opts.workers == 1 or len(todo) == 1 else
+             f"on {min(opts.workers, len(todo))} processes")
+    progress(f"sweep: {len(cases)} cases of {scene_path.name}, {len(todo)} to run {where}")
+    if not todo:
+        return
+    for case, summary in _runner(todo, out, opts):
+        row = table.add(case, summary)
+        wall = row.get("wall_time_s")
+        took = f" ({wall:.2f} s)" if isinstance(wall, float) else ""
+        why = f": {row['message']}" if row["status"] != "finished" and row.get("message") else ""
+        progress(f"  {case.name} {case.assignment}: {row['status']}, converged={row.get('converged')}{took}{why}")
 
-    from .io import write_json
-    from .io.table import plot_curve, write_csv
 
-    progress(f"sweep: {len(cases)} cases of {scene_path.name}")
-    t0 = time.perf_counter()
-    if scheduler:
-        client = Client(scheduler)
-        cluster = None
-    else:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
-        client = Client(cluster)
-    try:
-        futures = [client.submit(_run_case, data, str(out / f"case_{i:03d}"), base_dir, pure=False)
-                   for i, (_, data) in enumerate(cases)]
-        rows = []
-        for i, ((assignment, _), fut) in enumerate(zip(cases, futures)):
-            summary = fut.result()
-            row = {"case": f"case_{i:03d}", **assignment, **_scalars(summary)}
-            rows.append(row)
-            progress(f"  {row['case']} {assignment}: converged={summary.get('converged')}")
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    keys = [k for k, _ in (parse_param(p) for p in params)]
-    columns = ["case", *keys] + sorted({k for r in rows for k in r} - {"case", *keys})
-    table = {c: [r.get(c, "") for r in rows] for c in columns}
-    write_csv(out / "sweep.csv", table, columns)
-    write_json(out / "sweep.json", {"parameters": keys, "wall_time_s": time.perf_counter() - t0, "rows": rows})
-    if plot_y is not None and plot_y not in columns:
-        # the table is written: the work is kept, and the key is refused with the ones there are
-        known = ", ".join(c for c in columns if c != "case")
-        raise SceneError("--plot", f"no entry {plot_y!r} in the case summaries (the table is in {out / 'sweep.csv'}); "
-                         f"known: {known}")
-    y = plot_y or next((c for c in ("max_displacement", "rise", "iterations") if c in columns), None)
-    first = keys[0]
-    if y and all(isinstance(r.get(first), (int, float)) and isinstance(r.get(y), (int, float)) for r in rows):
-        try:
-            plot_curve(out / "sweep.png", [r[first] for r in rows], [r[y] for r in rows], first, y,
-                       f"{scene_path.stem}: {y} against {first}")
-        except Exception as exc:  # noqa: BLE001 (the table is written; a plot that fails is only reported)
-            progress(f"sweep.png not drawn: {type(exc).__name__}: {exc}")
-    elif y:
-        progress(f"sweep.png not drawn: {y!r} or {first!r} is not a number in every case")
-    return rows
+def _runner(cases: list[Case], out: Path, opts: SweepOptions) -> Iterable[tuple[Case, dict]]:
+    if opts.scheduler:
+        return _on_dask(cases, out, opts.scheduler)
+    if opts.workers == 1 or len(cases) == 1:
+        return _in_process(cases, out)
+    return _on_pool(cases, out, min(opts.workers, len(cases)))
