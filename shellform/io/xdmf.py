@@ -8,7 +8,7 @@
 * ``/states/<k>/point/<field>`` and ``/states/<k>/cell/<field>``: the fields
   of :func:`~shellform.io.mesh.state_mesh`;
 * attributes of ``/states/<k>``: ``time`` and ``load_factor``; of the root:
-  ``time_name`` (what the time axis is) and ``units`` of every field.
+  ``time_name`` (what the time axis is) and ``units`` of every field (JSON).
 
 The time of a state is the quantity the caller names (a load factor, a
 prescribed displacement, an arc length or a physical time); it must increase
@@ -23,6 +23,7 @@ never names an HDF5 file that is not complete.
 
 from __future__ import annotations
 
+import json
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from pathlib import Path
@@ -84,8 +85,7 @@ def write_series(path, system, states: Iterable[tuple[float, np.ndarray, float]]
             lines = mesh.cells[0].data
             if k == 0:
                 h5["cells"] = lines
-                h5.attrs["units"] = repr({n: FIELD_UNITS.get(n, "") for n in
-                                          [*mesh.point_data, *mesh.cell_data]})
+                h5.attrs["units"] = json.dumps({n: FIELD_UNITS.get(n, "") for n in [*mesh.point_data, *mesh.cell_data]})
             group = h5.create_group(f"states/{k}")
             group.attrs.update(time=t, load_factor=float(lam))
             grid = ET.SubElement(collection, "Grid", Name=f"state {k}", GridType="Uniform")
