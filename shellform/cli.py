@@ -4,39 +4,27 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib import resources
 from pathlib import Path
 
 from .errors import SceneError, ShellformError
+from .api import builtin_scene_path, builtin_scenes
 from .progress import Console
 
 DEFAULT_SCENE = "default"
 
 
-def _builtin_scene(name: str) -> Path:
-    path = resources.files("shellform") / "scenes" / f"{name}.toml"
-    if not path.is_file():
-        raise FileNotFoundError(name)
-    return Path(str(path))
-
-
-def builtin_scenes() -> list[str]:
-    """Names of the scenes shipped with shellform."""
-    folder = resources.files("shellform") / "scenes"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
-
-
 def _scene_path(arg: str | None) -> Path:
     """A scene file, or the built-in scene of that name (default: the default scene)."""
     if arg is None:
-        return _builtin_scene(DEFAULT_SCENE)
+        return builtin_scene_path(DEFAULT_SCENE)
     path = Path(arg)
     if path.exists() or path.suffix == ".toml":
         return path
     try:
-        return _builtin_scene(arg)
-    except FileNotFoundError:
-        raise SceneError(arg, f"no such file and no built-in scene of that name; built-in: {', '.join(builtin_scenes())}")
+        return builtin_scene_path(arg)
+    except SceneError:
+        raise SceneError(arg, f"no such file and no built-in scene of that name; built-in: {', '.join(builtin_scenes())}"
+                         ) from None
 
 
 def _verbosity(args) -> int:
@@ -44,7 +32,7 @@ def _verbosity(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .analyses import run_scene
+    from .api import run
     from .scene import load_scene
 
     path = _scene_path(args.scene)
@@ -52,7 +40,7 @@ def _cmd_run(args) -> int:
     console = Console(_verbosity(args))
     console(f"scene: {path}")
     try:
-        summary = run_scene(scene, args.out, console, resume=args.resume)
+        summary = run(scene, args.out, console, resume=args.resume).summary
     finally:
         console.close()
     for note in summary.get("warnings", []):

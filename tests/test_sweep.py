@@ -171,10 +171,10 @@ def test_axis_units_come_from_the_scene_reference_and_the_summaries(truss, tmp_p
 @pytest.mark.slow
 def test_critical_load_factor_over_slack_coefficients(tmp_path):
     """The default scene (form finding, then buckling) swept over the ropes' slack: one column, one plot."""
-    from shellform.cli import _builtin_scene
+    from shellform.api import builtin_scene_path
 
     out = tmp_path / "slack"
-    code = main(["sweep", str(_builtin_scene("default")), "--param", "ropes.slack=0.05,0.1,0.2", "--out", str(out),
+    code = main(["sweep", str(builtin_scene_path("default")), "--param", "ropes.slack=0.05,0.1,0.2", "--out", str(out),
                  "--quiet", "--workers", "2", "--plot", "buckling.critical_load_factor"])
     assert code == 0
     table = read_csv(out / "sweep.csv")
