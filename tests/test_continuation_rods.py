@@ -17,7 +17,7 @@ from scipy.optimize import brentq, minimize_scalar
 from scipy.special import ellipe, ellipk
 
 from shellform.model import Structure
-from shellform.rods.network import RodNetwork, build_rod_system
+from shellform.rods import RodNetwork, RodSection, build_rod_system
 from shellform.solvers.continuation import trace_path
 from shellform.solvers.newton import solve_static
 
@@ -28,7 +28,7 @@ def planar_column():
     st = np.linspace(0.0, LENGTH, N_EDGES + 1)
     s = Structure(np.stack([st, 0 * st, 0 * st], axis=1))
     net = RodNetwork(s)
-    net.add_rod(np.arange(N_EDGES + 1), EA=1e6, EI=EI, GJ=EI / 1.3)
+    net.add_rod(np.arange(N_EDGES + 1), RodSection(EA=1e6, EI=EI, GJ=EI / 1.3))
     net.pin(0, "start", twist="fixed")
     s.fix([N_EDGES], "yz")
     s.fix(np.arange(N_EDGES + 1), "y")  # bending in the x-z plane only

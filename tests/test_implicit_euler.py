@@ -6,7 +6,7 @@ import pytest
 from shellform.assembly import build_system
 from shellform.errors import ModelError
 from shellform.model import Structure
-from shellform.rods.network import NodePath, RodNetwork, build_rod_system
+from shellform.rods import NodePath, RodNetwork, RodSection, build_rod_system
 from shellform.solvers.implicit_euler import implicit_euler, lumped_mass, relax_to_rest
 from shellform.solvers.newton import solve_static
 
@@ -76,7 +76,8 @@ def cantilever(n=20, L=1.0, EI=1.0, rho_A=1.0, alpha=None):
     s = Structure(np.stack([st, 0 * st, 0 * st], axis=1))
     net = RodNetwork(s)
     mpl = rho_A if alpha is None else alpha * EI / (9.81 * L**3)
-    net.add_rod(np.arange(n + 1), EA=1e4, EI=EI, GJ=EI / 1.3, mass_per_length=mpl, rotational_inertia=1e-4 * mpl)
+    net.add_rod(np.arange(n + 1), RodSection(EA=1e4, EI=EI, GJ=EI / 1.3, mass_per_length=mpl,
+                                          rotational_inertia=1e-4 * mpl))
     net.clamp(0, "start")
     return s, net
 
@@ -129,7 +130,7 @@ def test_rod_carried_rigidly_along_a_path_stays_unstressed():
     x = np.linspace(0, L, n + 1)
     s = Structure(np.stack([x, 0 * x, 0 * x], axis=1))
     net = RodNetwork(s)
-    net.add_rod(np.arange(n + 1), EA=1e3, EI=1.0, GJ=0.8)
+    net.add_rod(np.arange(n + 1), RodSection(EA=1e3, EI=1.0, GJ=0.8))
     net.pin(0, "start", twist="fixed")
     net.fix_twist(0, "end")  # the far end's position follows the path
 

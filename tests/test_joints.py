@@ -8,7 +8,7 @@ from fd import dense_hessian, fd_gradient, fd_jacobian, relative_error
 from shellform.effects.joints import PenaltyJoints
 from shellform.errors import ModelError
 from shellform.model import Structure
-from shellform.rods.network import RodNetwork, build_rod_system, stack_polylines
+from shellform.rods import RodNetwork, RodSection, build_rod_system, stack_polylines
 from shellform.solvers.newton import solve_static
 
 
@@ -32,7 +32,7 @@ def grid(merge, ratio=1e4, n_rods=3, n_edges=12, L=1.0):
     s = Structure(nodes)
     net = RodNetwork(s)
     for ix in idx:
-        net.add_rod(ix, EA=1e4, EI=1.0, GJ=0.75)
+        net.add_rod(ix, RodSection(EA=1e4, EI=1.0, GJ=0.75))
     if not merge:
         net.add_joints(pairs, stiffness_ratio=ratio)
     for r in range(len(idx)):

@@ -5,7 +5,7 @@ import pytest
 from fd import relative_error
 
 import shellform as sf
-from shellform.rods.network import RodNetwork, build_rod_system, stack_polylines
+from shellform.rods import RodNetwork, RodSection, build_rod_system, stack_polylines
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.newton import StretchProjection, solve_static
 from shellform.validation.cases_rods import G, clamped_stations, straight_rod
@@ -20,7 +20,7 @@ def crossing_rods(seed=0, load=0.0):
     s = sf.Structure(nodes + 0.02 * rng.normal(size=nodes.shape))
     net = RodNetwork(s)
     for ix in idx:
-        net.add_rod(ix, EA=1e5, EI=1.0, GJ=0.75)
+        net.add_rod(ix, RodSection(EA=1e5, EI=1.0, GJ=0.75))
     net.add_joints(pairs, stiffness_ratio=1e3)
     s.add_bars([[idx[0][-1], idx[1][-1]]], EA=1e4)
     s.add_ropes([[idx[0][-2], idx[1][-2]]], EA=1e4)

@@ -5,7 +5,7 @@ import pytest
 
 from shellform.errors import ModelError
 from shellform.model import Structure
-from shellform.rods.network import NodePath, RodNetwork, build_rod_system
+from shellform.rods import NodePath, RodNetwork, RodSection, build_rod_system
 from shellform.rods.statics import solve_incremental
 
 
@@ -13,7 +13,7 @@ def straight(n=10, L=1.0):
     x = np.linspace(0, L, n + 1)
     s = Structure(np.stack([x, 0 * x, 0 * x], axis=1))
     net = RodNetwork(s)
-    rod = net.add_rod(np.arange(n + 1), EA=1e3, EI=1.0, GJ=0.8)
+    rod = net.add_rod(np.arange(n + 1), RodSection(EA=1e3, EI=1.0, GJ=0.8))
     return s, net, rod
 
 

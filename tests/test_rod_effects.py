@@ -15,7 +15,7 @@ from shellform.rods.kinematics import (
     parallel_transport,
     signed_angle,
 )
-from shellform.rods.network import RodNetwork, build_rod_system, circular_section, stack_polylines
+from shellform.rods import RestShape, RodNetwork, RodSection, build_rod_system, circular_section, stack_polylines
 
 
 def network_from(lines, closed=(), natural=None, twist=None, seed=0, **kw):
@@ -27,11 +27,8 @@ def network_from(lines, closed=(), natural=None, twist=None, seed=0, **kw):
         h = len(ix) if k in closed else len(ix) - 2
         net.add_rod(
             ix,
-            EA=rng.uniform(5, 10),
-            EI=rng.uniform(1, 2, h),
-            GJ=rng.uniform(0.5, 1.0),
-            natural_curvature=(natural[k] if natural else "rest"),
-            natural_twist=(twist[k] if twist else 0.0),
+            RodSection(EA=rng.uniform(5, 10), EI=rng.uniform(1, 2, h), GJ=rng.uniform(0.5, 1.0)),
+            RestShape(natural_curvature=(natural[k] if natural else "rest"), natural_twist=(twist[k] if twist else 0.0)),
             closed=k in closed,
             **kw,
         )
@@ -223,8 +220,8 @@ def test_builder_allocates_twist_dofs_and_stencils():
     assert pairs.tolist() == [[1, 4]]
     s = Structure(nodes)
     net = RodNetwork(s)
-    r0 = net.add_rod(idx[0], **circular_section(1e9, 4e8, 1e-3, 1000))
-    r1 = net.add_rod(idx[1], **circular_section(1e9, 4e8, 1e-3, 1000))
+    r0 = net.add_rod(idx[0], circular_section(1e9, 4e8, 1e-3, 1000))
+    r1 = net.add_rod(idx[1], circular_section(1e9, 4e8, 1e-3, 1000))
     assert s.n_twist == 2 + 3
     assert list(r0.twist_dofs) == [21, 22] and list(r1.twist_dofs) == [23, 24, 25]
     st = net.hinge_stencils()
@@ -243,20 +240,20 @@ def test_builder_rejects_bad_rods():
     s = Structure(np.array([[0.0, 0, 0], [1, 0, 0], [1, 0, 0], [2, 0, 0]]))
     net = RodNetwork(s)
     with pytest.raises(ModelError, match="out of range"):
-        net.add_rod([0, 1, 7], EA=1, EI=1, GJ=1)
+        net.add_rod([0, 1, 7], RodSection(EA=1, EI=1, GJ=1))
     with pytest.raises(ModelError, match="zero length"):
-        net.add_rod([0, 1, 2, 3], EA=1, EI=1, GJ=1)
+        net.add_rod([0, 1, 2, 3], RodSection(EA=1, EI=1, GJ=1))
     with pytest.raises(ModelError, match="EI"):
-        net.add_rod([0, 1, 3], EA=1, EI=-1.0, GJ=1)
+        net.add_rod([0, 1, 3], RodSection(EA=1, EI=-1.0, GJ=1))
     with pytest.raises(ModelError, match="twice"):
-        net.add_rod([0, 1, 0], EA=1, EI=1, GJ=1)
+        net.add_rod([0, 1, 0], RodSection(EA=1, EI=1, GJ=1))
 
 
 def test_free_spinning_rod_is_reported():
     x = np.linspace(0, 1, 5)
     s = Structure(np.stack([x, 0 * x, 0 * x], axis=1))
     net = RodNetwork(s)
-    net.add_rod(np.arange(5), EA=1, EI=1, GJ=1, name="beam")
+    net.add_rod(np.arange(5), RodSection(EA=1, EI=1, GJ=1), name="beam")
     net.pin(0, "start", twist="free")
     net.pin(0, "end", twist="free")
     with pytest.raises(MechanismError, match="beam.*spin"):

@@ -5,7 +5,7 @@ import pytest
 from scipy.optimize import brentq
 
 from shellform.model import Structure
-from shellform.rods.network import RodNetwork, build_rod_system
+from shellform.rods import RodNetwork, RodSection, build_rod_system
 from shellform.solvers.newton import solve_static
 
 # clamped-clamped rod under twist: the straight state is lost at M L / EI = 2 x, tan x = x
@@ -19,7 +19,7 @@ def twisted_rod(n=40, L=1.0, EI=1.0, GJ=2.0 / 3.0):
     st = (np.arange(n + 1) - 0.5) * l
     s = Structure(np.stack([st, 0 * st, 0 * st], axis=1))
     net = RodNetwork(s)
-    rod = net.add_rod(np.arange(n + 1), EA=1e6, EI=EI, GJ=GJ)
+    rod = net.add_rod(np.arange(n + 1), RodSection(EA=1e6, EI=EI, GJ=GJ))
     net.clamp(rod, "start")
     net.clamp(rod, "end")
     s.prescribe_dofs([rod.twist_dofs[-1]], [1.0])

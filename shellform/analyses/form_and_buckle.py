@@ -9,11 +9,12 @@ import numpy as np
 
 from ..io.summary import RunRecord
 from ..model import Structure
+from ..rods.section import RestShape, RodSection, circular_section
 from .form_finding import ROD_DEFAULTS, Progress, _find_form, grid_lines
 
 
 
-def dome_rods(result, section: dict, plane_z: float | None = None):
+def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | None = None):
     """The inverted hanging net as a rod gridshell, loaded by its own form-finding weight.
 
     Returns
@@ -35,7 +36,7 @@ def dome_rods(result, section: dict, plane_z: float | None = None):
     s.set_gravity(g)  # the shell carries the weight the net hung under, downward
     network = RodNetwork(s)
     for k, chain in enumerate(grid_lines(net.grid)):
-        network.add_rod(chain, name=f"rod{k}", **section)
+        network.add_rod(chain, section, rest, name=f"rod{k}")
     s.fix(net.supports)
     # hold the twist of every edge that touches a suspension point: a pinned
     # rod end with free twist could spin about its own axis
@@ -48,15 +49,13 @@ def dome_rods(result, section: dict, plane_z: float | None = None):
 
 
 def _section(scene: dict) -> dict:
-    from ..rods.network import circular_section
-
     rods = scene["rods"] or {}
     value = {k: (rods.get(k) if rods.get(k) is not None else d) for k, d in ROD_DEFAULTS.items()}
     E = value["E"]
     G = rods.get("G") or E / 2.6
     section = circular_section(E=E, G=G, radius=value["radius"], density=value["density"])
-    section["natural_curvature"] = "straight" if rods.get("rest_shape", "straight") == "straight" else "rest"
-    return {"section": section, "E": E, "G": G, "radius": value["radius"],
+    rest = RestShape(natural_curvature="straight" if rods.get("rest_shape", "straight") == "straight" else "rest")
+    return {"section": section, "rest": rest, "E": E, "G": G, "radius": value["radius"],
             "rest_shape": rods.get("rest_shape", "straight")}
 
 
@@ -99,7 +98,7 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
         return summary
     stage("start", "buckling", body=summary)
     sec = _section(scene)
-    structure, network = dome_rods(form, sec["section"])
+    structure, network = dome_rods(form, sec["section"], sec["rest"])
     system = build_rod_system(network, gravity_scaled=True)
     q_start = None
     if sec["rest_shape"] == "straight":

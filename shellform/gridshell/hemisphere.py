@@ -36,7 +36,9 @@ from ..assembly import System
 from ..errors import ModelError
 from ..geometry.chebyshev import ChebyshevHemisphere, chebyshev_hemisphere
 from ..model import Structure
-from ..rods.network import NodePath, RodNetwork, build_rod_system, circular_section
+from ..rods.network import RodNetwork, build_rod_system
+from ..rods.node_path import NodePath
+from ..rods.section import RestShape, circular_section
 from ..rods.statics import solve_incremental
 from ..solvers.newton import solve_static
 
@@ -315,18 +317,8 @@ def build_hemisphere(
     for k, rod in enumerate(net.rods):
         idx = local_to_global[k]
         first = sphere_nodes[idx[0]] / radius if configuration == "sphere" else np.array([0.0, 0.0, 1.0])
-        network.add_rod(
-            idx,
-            EA=section["EA"],
-            EI=section["EI"],
-            GJ=section["GJ"],
-            mass_per_length=section["mass_per_length"],
-            rotational_inertia=section["rotational_inertia"],
-            natural_curvature="straight",
-            rest_length=np.diff(stations[k]),
-            director=first,
-            name=f"{rod.family}{rod.index:+d}",
-        )
+        rest = RestShape(natural_curvature="straight", rest_length=np.diff(stations[k]), director=first)
+        network.add_rod(idx, section, rest, name=f"{rod.family}{rod.index:+d}")
     if joints == "penalty":
         network.add_joints(joint_nodes, stiffness_ratio=stiffness_ratio)
     end_nodes = np.array([[idx[0], idx[-1]] for idx in local_to_global], dtype=np.int64)
@@ -347,7 +339,7 @@ def build_hemisphere(
         net=net, structure=structure, network=network, configuration=configuration,
         rod_nodes=[np.asarray(i, dtype=np.int64) for i in local_to_global], rod_stations=stations,
         joint_nodes=joint_nodes, joint_keys=joint_keys, end_nodes=end_nodes, sphere_nodes=sphere_nodes,
-        plane_nodes=plane_nodes, equator_ends=equator, EI=float(section["EI"]), params=params, paths=paths,
+        plane_nodes=plane_nodes, equator_ends=equator, EI=float(section.EI), params=params, paths=paths,
     )
 
 

@@ -2,22 +2,19 @@
 
 from .grids import square_grid_polylines
 from .kinematics import ReferenceFrames
-from .network import (
-    NodePath,
-    Rod,
-    RodNetwork,
-    build_rod_system,
-    circular_section,
-    resample_polyline,
-    stack_polylines,
-)
+from .network import Rod, RodNetwork, build_rod_system
+from .node_path import NodePath
+from .polylines import resample_polyline, stack_polylines
+from .section import RestShape, RodSection, circular_section
 from .statics import IncrementalResult, SupportsAt, accept_state, solve_incremental
 
 __all__ = [
     "ReferenceFrames",
     "NodePath",
+    "RestShape",
     "Rod",
     "RodNetwork",
+    "RodSection",
     "build_rod_system",
     "circular_section",
     "resample_polyline",

@@ -13,7 +13,7 @@ def square_grid_polylines(n: int, span: float, edges_per_cell: int, z: float = 0
     The rods sit at ``span (i + 1) / (n + 1)``, i = 0..n-1, and run the full
     span; each has ``(n + 1) edges_per_cell`` equal edges, so every crossing
     falls on a node of both rods (ready for shared nodes or penalty joints,
-    see :func:`~shellform.rods.network.stack_polylines`).
+    see :func:`~shellform.rods.polylines.stack_polylines`).
 
     Returns
     -------

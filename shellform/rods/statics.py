@@ -6,7 +6,7 @@ on a rod network as it is: within one solve the stored frames stay put and the
 energy is one smooth function of ``q``. Large motions are better taken in
 steps, accepting each converged state (:meth:`System.accept`), so that the
 frames follow the path; :func:`solve_incremental` does that, halving a step
-that fails, and moves supports along :class:`~shellform.rods.network.NodePath`
+that fails, and moves supports along :class:`~shellform.rods.node_path.NodePath`
 paths.
 """
 

@@ -7,6 +7,7 @@ from scipy.optimize import brentq
 
 from ..model import Structure
 from ..rods.network import RodNetwork, build_rod_system
+from ..rods.section import RodSection
 from ..rods.statics import solve_incremental
 from ..solvers.newton import solve_static
 from .reference import (
@@ -29,7 +30,7 @@ def straight_rod(stations, EA: float, EI: float = 1.0, GJ: float = 1.0 / 1.3, ma
     stations = np.asarray(stations, dtype=float)
     s = Structure(np.stack([stations, 0 * stations, 0 * stations], axis=1))
     net = RodNetwork(s)
-    net.add_rod(np.arange(len(stations)), EA=EA, EI=EI, GJ=GJ, mass_per_length=mass_per_length)
+    net.add_rod(np.arange(len(stations)), RodSection(EA=EA, EI=EI, GJ=GJ, mass_per_length=mass_per_length))
     return s, net
 
 

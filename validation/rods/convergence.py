@@ -23,7 +23,7 @@ from common import fmt, write_results
 from scipy.optimize import brentq
 
 from shellform.model import Structure
-from shellform.rods.network import RodNetwork, build_rod_system
+from shellform.rods import RodNetwork, RodSection, build_rod_system
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.newton import solve_static
 
@@ -56,7 +56,7 @@ def elastica_tip(alpha: float, tol: float = 1e-10) -> tuple[float, float]:
 def rod_along_x(stations, **props):
     s = Structure(np.stack([stations, 0 * stations, 0 * stations], axis=1))
     net = RodNetwork(s)
-    rod = net.add_rod(np.arange(len(stations)), **props)
+    rod = net.add_rod(np.arange(len(stations)), RodSection(**props))
     return s, net, rod
 
 

@@ -24,7 +24,7 @@ from common import fmt, write_results
 
 from shellform.model import Structure
 from shellform.rods.grids import square_grid_polylines
-from shellform.rods.network import RodNetwork, build_rod_system, stack_polylines
+from shellform.rods import RestShape, RodNetwork, RodSection, build_rod_system, stack_polylines
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.implicit_euler import implicit_euler, lumped_mass
 
@@ -38,8 +38,8 @@ def arched_grid(merge: bool, ratio: float = 1e4, n: int = 3, k: int = 8, span: f
     s = Structure(nodes)
     net = RodNetwork(s)
     for ix in idx:
-        net.add_rod(ix, EA=1e4, EI=1.0, GJ=0.75, mass_per_length=1.0, rotational_inertia=1e-4,
-                    natural_curvature="straight")
+        net.add_rod(ix, RodSection(EA=1e4, EI=1.0, GJ=0.75, mass_per_length=1.0, rotational_inertia=1e-4),
+                    RestShape(natural_curvature="straight"))
     if not merge:
         net.add_joints(pairs, stiffness_ratio=ratio)
     for r, rod in enumerate(net.rods):
