@@ -22,13 +22,13 @@ import argparse
 import json
 import time
 
-from shellform.gridshell.hemisphere import build_hemisphere, prestress_on_net
+from shellform.gridshell.hemisphere import HemisphereSpec, build_hemisphere, prestress_on_net
 from shellform.gridshell.indentation import indentation_system, trace_indentation
 
 
 def whole_curve(n, dl):
     t0 = time.perf_counter()
-    model = build_hemisphere(n, voronoi_length=dl)
+    model = build_hemisphere(HemisphereSpec(n, voronoi_length=dl))
     t1 = time.perf_counter()
     pre = prestress_on_net(model)
     t2 = time.perf_counter()
@@ -47,7 +47,7 @@ def whole_curve(n, dl):
 def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3):
     from shellform.solvers.implicit_euler import implicit_euler, lumped_mass
 
-    model = build_hemisphere(n, voronoi_length=dl)
+    model = build_hemisphere(HemisphereSpec(n, voronoi_length=dl))
     pre = prestress_on_net(model)
     R = model.radius
     d_end = x_end * R

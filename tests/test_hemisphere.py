@@ -5,6 +5,7 @@ import pytest
 
 from shellform.errors import ModelError
 from shellform.gridshell.hemisphere import (
+    HemisphereSpec,
     build_hemisphere,
     compare_shapes,
     prestress_by_paths,
@@ -17,7 +18,7 @@ DL = 4.0e-3  # coarse Voronoi length for the default suite
 
 @pytest.fixture(scope="module")
 def on_net():
-    model = build_hemisphere(5, voronoi_length=DL)
+    model = build_hemisphere(HemisphereSpec(5, voronoi_length=DL))
     return model, prestress_on_net(model)
 
 
@@ -75,7 +76,7 @@ def test_relaxed_net_stays_close_to_the_hemisphere(on_net):
 
 def test_both_construction_routes_give_the_same_shape(on_net):
     model, pre = on_net
-    flat = build_hemisphere(5, voronoi_length=DL, configuration="plane")
+    flat = build_hemisphere(HemisphereSpec(5, voronoi_length=DL, configuration="plane"))
     start = flat.positions(flat.structure.reference_state())
     assert np.allclose(start[:, 2], flat.params["bump"] * R * (1 - (np.linalg.norm(start[:, :2], axis=1)
                                                                       / np.linalg.norm(start[:, :2], axis=1).max()) ** 2))
@@ -87,10 +88,10 @@ def test_both_construction_routes_give_the_same_shape(on_net):
 
 def test_bad_parameters_are_named():
     with pytest.raises(ModelError, match="joints"):
-        build_hemisphere(5, joints="glued")
+        build_hemisphere(HemisphereSpec(5, joints="glued"))
     with pytest.raises(ModelError, match="voronoi_length"):
-        build_hemisphere(5, voronoi_length=0.1)
+        build_hemisphere(HemisphereSpec(5, voronoi_length=0.1))
     with pytest.raises(ModelError, match="odd"):
-        build_hemisphere(4)
+        build_hemisphere(HemisphereSpec(4))
     with pytest.raises(ModelError, match="configuration"):
-        build_hemisphere(5, configuration="cylinder")
+        build_hemisphere(HemisphereSpec(5, configuration="cylinder"))

@@ -6,7 +6,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from shellform.errors import ModelError
-from shellform.gridshell.hemisphere import build_hemisphere, prestress_on_net
+from shellform.gridshell.hemisphere import HemisphereSpec, build_hemisphere, prestress_on_net
 from shellform.gridshell.configurations import classify_configuration
 from shellform.gridshell.indentation import indentation_system, trace_indentation
 from shellform.solvers.stability import count_negative, smallest_eigenpair
@@ -20,7 +20,7 @@ DL = 4.0e-3  # coarse Voronoi length: the whole path in a few seconds
 
 @pytest.fixture(scope="module")
 def model():
-    m = build_hemisphere(5, voronoi_length=DL)
+    m = build_hemisphere(HemisphereSpec(5, voronoi_length=DL))
     return m, prestress_on_net(m)
 
 
@@ -136,7 +136,7 @@ def test_a_dome_and_its_mirror_image_are_labelled(model):
 @pytest.mark.parametrize("mode, published", [("I", MODE_I), ("II", MODE_II)])
 def test_paper_resolution_n11(mode, published):
     """n = 11 at the paper's Voronoi length of 1 mm (about a minute per mode)."""
-    m = build_hemisphere(11, voronoi_length=1.0e-3)
+    m = build_hemisphere(HemisphereSpec(11, voronoi_length=1.0e-3))
     res = trace_indentation(indentation_system(m, prestress_on_net(m), mode=mode))
     assert res.success, res.message
     for computed, ref in zip(res.thresholds, published):

@@ -14,7 +14,7 @@ from .common import Progress, plot_or_note, write_final_state
 
 def hemisphere_model(scene: dict):
     """The hemisphere of a validated scene (the paper's values where [rods] leaves them open)."""
-    from ..gridshell.hemisphere import PAPER, build_hemisphere
+    from ..gridshell.hemisphere import PAPER, HemisphereSpec, build_hemisphere
 
     g = scene["geometry"]
     rods = scene["rods"] or check_table("rods", {}, scenes.SCENE.keys["rods"])
@@ -22,12 +22,12 @@ def hemisphere_model(scene: dict):
     def pick(key, paper):
         return PAPER[paper] if rods[key] is None else rods[key]
 
-    return build_hemisphere(
+    return build_hemisphere(HemisphereSpec(
         g["n"], radius=g["radius"] or PAPER["radius"], voronoi_length=g["voronoi_length"],
         rod_radius=pick("radius", "rod_radius"), youngs_modulus=pick("E", "youngs_modulus"),
         shear_modulus=rods["G"], density=pick("density", "density"), joints=rods["joints"],
         stiffness_ratio=rods["joint_stiffness_ratio"],
-    )
+    ))
 
 
 def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:

@@ -3,6 +3,7 @@
 from .hemisphere import (
     PAPER,
     HemisphereModel,
+    HemisphereSpec,
     PrestressResult,
     build_hemisphere,
     compare_shapes,
@@ -19,11 +20,12 @@ from .indentation import (
     indentation_system,
     trace_indentation,
 )
-from .study import construction_case, indentation_case
+from .study import IndentationCase, construction_case, indentation_case
 
 __all__ = [
     "PAPER",
     "HemisphereModel",
+    "HemisphereSpec",
     "PrestressResult",
     "build_hemisphere",
     "compare_shapes",
@@ -39,6 +41,7 @@ __all__ = [
     "indentation_system",
     "smallest_eigenpair",
     "trace_indentation",
+    "IndentationCase",
     "construction_case",
     "indentation_case",
 ]

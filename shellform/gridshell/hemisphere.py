@@ -28,7 +28,7 @@ Units are SI; the paper's defaults are in :data:`PAPER`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -36,11 +36,10 @@ from ..assembly import System
 from ..errors import ModelError
 from ..geometry.chebyshev import ChebyshevHemisphere, chebyshev_hemisphere
 from ..model import Structure
-from ..rods.network import RodNetwork, build_rod_system
-from ..rods.node_path import NodePath
-from ..rods.section import RestShape, circular_section
+from ..rods.network import NodePath, RodNetwork, build_rod_system, circular_section
 from ..rods.statics import solve_incremental
 from ..solvers.newton import solve_static
+from .layout import NodeLayout, lay_out_nodes
 
 #: parameters of the gridshell paper (Huang, Qin, Chen, J. Appl. Mech. 89(1) 011005, 2022, DOI 10.1115/1.4052289)
 PAPER = dict(
@@ -177,43 +176,11 @@ class HemisphereModel:
         return [x[idx] for idx in self.rod_nodes]
 
 
-def _stations(rod, h: float, kmax: int, dl: float) -> tuple[np.ndarray, np.ndarray]:
-    """Arc-length stations of a rod's nodes and the indices of its joint stations.
+@dataclass(frozen=True)
+class HemisphereSpec:
+    """What a hemispherical gridshell is made of: its net, the rods' section, the joints and the start.
 
-    Joints sit at ``l h`` for ``l`` in ``-kmax..kmax`` when inside the rod; each
-    segment between consecutive stations (joints and ends) gets
-    ``max(1, round(length / dl))`` equal edges.
-    """
-    joints = [l * h for l in range(-kmax, kmax + 1) if rod.s_start + 1e-9 * h < l * h < rod.s_end - 1e-9 * h]
-    knots = np.array([rod.s_start, *joints, rod.s_end])
-    pieces, joint_at = [], []
-    count = 0
-    for a, b in zip(knots[:-1], knots[1:]):
-        m = max(1, int(round((b - a) / dl)))
-        pieces.append(np.linspace(a, b, m + 1)[:-1])
-        count += m
-        joint_at.append(count)
-    pieces.append(knots[-1:])
-    s = np.concatenate(pieces)
-    return s, np.array(joint_at[:-1], dtype=np.int64)
-
-
-def build_hemisphere(
-    n: int,
-    radius: float = PAPER["radius"],
-    voronoi_length: float = PAPER["voronoi_length"],
-    rod_radius: float = PAPER["rod_radius"],
-    youngs_modulus: float = PAPER["youngs_modulus"],
-    shear_modulus: float | None = None,
-    density: float = PAPER["density"],
-    joints: str = "penalty",
-    stiffness_ratio: float = 1.0e3,
-    configuration: str = "sphere",
-    bump: float = 0.05,
-) -> HemisphereModel:
-    """The rod network of the hemispherical gridshell with ``n`` rods per direction.
-
-    Parameters
+    Attributes
     ----------
     n : int
         Rods per direction (odd); ``2 n`` rods in all.
@@ -236,6 +203,80 @@ def build_hemisphere(
     bump : float
         Only for ``"plane"``: height of the initial upward bump, as a
         fraction of ``R``, that makes the flat grid buckle upwards.
+    """
+
+    n: int
+    radius: float = PAPER["radius"]
+    voronoi_length: float = PAPER["voronoi_length"]
+    rod_radius: float = PAPER["rod_radius"]
+    youngs_modulus: float = PAPER["youngs_modulus"]
+    shear_modulus: float | None = None
+    density: float = PAPER["density"]
+    joints: str = "penalty"
+    stiffness_ratio: float = 1.0e3
+    configuration: str = "sphere"
+    bump: float = 0.05
+
+
+def _checked(spec: HemisphereSpec) -> HemisphereSpec:
+    """The spec with its values checked, as floats, and the shear modulus filled in."""
+    if spec.joints not in ("penalty", "shared"):
+        raise ModelError(f"hemisphere: joints must be 'penalty' or 'shared', got {spec.joints!r}")
+    if spec.configuration not in ("sphere", "plane"):
+        raise ModelError(f"hemisphere: configuration must be 'sphere' or 'plane', got {spec.configuration!r}")
+    for what in ("radius", "voronoi_length", "rod_radius", "youngs_modulus"):
+        v = getattr(spec, what)
+        if not (np.isfinite(v) and v > 0):
+            raise ModelError(f"hemisphere: {what} must be positive and finite, got {v}")
+    G = spec.youngs_modulus / 3.0 if spec.shear_modulus is None else spec.shear_modulus
+    return replace(
+        spec, radius=float(spec.radius), voronoi_length=float(spec.voronoi_length),
+        rod_radius=float(spec.rod_radius), youngs_modulus=float(spec.youngs_modulus), shear_modulus=float(G),
+        density=float(spec.density), stiffness_ratio=float(spec.stiffness_ratio), bump=float(spec.bump),
+    )
+
+
+def _reference_nodes(spec: HemisphereSpec, layout: NodeLayout) -> np.ndarray:
+    """The nodes on the net, or in the footprint raised by a small bump (so the flat grid buckles upwards)."""
+    if spec.configuration == "sphere":
+        return layout.sphere_nodes.copy()
+    plane = layout.plane_nodes
+    ref = plane.copy()
+    rmax = max(float(np.linalg.norm(plane[:, :2], axis=1).max()), 1e-300)
+    rr = np.linalg.norm(plane[:, :2], axis=1) / rmax
+    ref[:, 2] = spec.bump * spec.radius * (1.0 - rr**2)
+    return ref
+
+
+def _rod_network(spec: HemisphereSpec, net: ChebyshevHemisphere, layout: NodeLayout, section: dict) -> RodNetwork:
+    """Straight rods along the net's lines, joined at the joints and pinned at both ends."""
+    network = RodNetwork(Structure(_reference_nodes(spec, layout)))
+    on_net = spec.configuration == "sphere"
+    for rod, idx, s in zip(net.rods, layout.rod_nodes, layout.stations):
+        # on the net the first director is the surface normal, which the rod carries without twist
+        first = layout.sphere_nodes[idx[0]] / spec.radius if on_net else np.array([0.0, 0.0, 1.0])
+        network.add_rod(
+            idx,
+            EA=section["EA"],
+            EI=section["EI"],
+            GJ=section["GJ"],
+            mass_per_length=section["mass_per_length"],
+            rotational_inertia=section["rotational_inertia"],
+            natural_curvature="straight",
+            rest_length=np.diff(s),
+            director=first,
+            name=f"{rod.family}{rod.index:+d}",
+        )
+    if spec.joints == "penalty":
+        network.add_joints(layout.joint_nodes, stiffness_ratio=spec.stiffness_ratio)
+    for k in range(len(net.rods)):
+        network.pin(k, "start", twist="fixed")
+        network.pin(k, "end", twist="fixed")
+    return network
+
+
+def build_hemisphere(spec: HemisphereSpec) -> HemisphereModel:
+    """The rod network of the hemispherical gridshell that ``spec`` describes.
 
     Returns
     -------
@@ -244,102 +285,27 @@ def build_hemisphere(
         ``"plane"`` configuration the end translations follow the paths in
         ``model.paths`` (footprint at ``t = 0``, equator at ``t = 1``).
     """
-    if joints not in ("penalty", "shared"):
-        raise ModelError(f"hemisphere: joints must be 'penalty' or 'shared', got {joints!r}")
-    if configuration not in ("sphere", "plane"):
-        raise ModelError(f"hemisphere: configuration must be 'sphere' or 'plane', got {configuration!r}")
-    for what, v in (("radius", radius), ("voronoi_length", voronoi_length), ("rod_radius", rod_radius),
-                    ("youngs_modulus", youngs_modulus)):
-        if not (np.isfinite(v) and v > 0):
-            raise ModelError(f"hemisphere: {what} must be positive and finite, got {v}")
-    net = chebyshev_hemisphere(radius, n)
-    h = net.spacing
-    if voronoi_length > h:
-        raise ModelError(f"hemisphere: voronoi_length {voronoi_length} exceeds the joint spacing {h:.4g}")
-    kmax = (net.n - 1) // 2
-    G = youngs_modulus / 3.0 if shear_modulus is None else shear_modulus
-    section = circular_section(youngs_modulus, G, rod_radius, density)
-
-    # nodes of every rod (u rods first, then v rods, as in the net)
-    stations, joint_idx, sphere_pts, plane_pts = [], [], [], []
-    for rod in net.rods:
-        s, jidx = _stations(rod, h, kmax, voronoi_length)
-        stations.append(s)
-        joint_idx.append(jidx)
-        sphere_pts.append(rod.position(s))
-        plane_pts.append(rod.planar(s, h))
-
-    # which station of which rod is joint (ku, kv)
-    rod_of = {(r.family, r.index): k for k, r in enumerate(net.rods)}
-    joint_keys, joint_station = [], []
-    for jt in net.joints:
-        ku, kv = rod_of[("u", jt.u_index)], rod_of[("v", jt.v_index)]
-        su = stations[ku][joint_idx[ku]]
-        sv = stations[kv][joint_idx[kv]]
-        iu = joint_idx[ku][int(np.argmin(np.abs(su - jt.v_index * h)))]
-        iv = joint_idx[kv][int(np.argmin(np.abs(sv - jt.u_index * h)))]
-        joint_keys.append((jt.u_index, jt.v_index))
-        joint_station.append((ku, iu, kv, iv))
-
-    # global numbering: every rod its own nodes; shared joints reuse the u rod's node
-    offsets = np.concatenate([[0], np.cumsum([len(s) for s in stations])])
-    local_to_global = [offsets[k] + np.arange(len(s)) for k, s in enumerate(stations)]
-    if joints == "shared":
-        drop = np.zeros(offsets[-1], dtype=bool)
-        for ku, iu, kv, iv in joint_station:
-            drop[local_to_global[kv][iv]] = True
-        new = np.cumsum(~drop) - 1
-        for k in range(len(stations)):
-            local_to_global[k] = new[offsets[k] + np.arange(len(stations[k]))]
-        for ku, iu, kv, iv in joint_station:
-            local_to_global[kv][iv] = local_to_global[ku][iu]
-        n_nodes = int((~drop).sum())
-    else:
-        n_nodes = int(offsets[-1])
-    sphere_nodes = np.zeros((n_nodes, 3))
-    plane_nodes = np.zeros((n_nodes, 3))
-    for k in range(len(stations)):
-        sphere_nodes[local_to_global[k]] = sphere_pts[k]
-        plane_nodes[local_to_global[k]] = plane_pts[k]
-    joint_nodes = np.array(
-        [(local_to_global[ku][iu], local_to_global[kv][iv]) for ku, iu, kv, iv in joint_station], dtype=np.int64
-    )
-
-    if configuration == "sphere":
-        ref = sphere_nodes.copy()
-    else:
-        ref = plane_nodes.copy()
-        rmax = max(float(np.linalg.norm(plane_nodes[:, :2], axis=1).max()), 1e-300)
-        rr = np.linalg.norm(plane_nodes[:, :2], axis=1) / rmax
-        ref[:, 2] = bump * radius * (1.0 - rr**2)
-    structure = Structure(ref)
-    network = RodNetwork(structure)
-    for k, rod in enumerate(net.rods):
-        idx = local_to_global[k]
-        first = sphere_nodes[idx[0]] / radius if configuration == "sphere" else np.array([0.0, 0.0, 1.0])
-        rest = RestShape(natural_curvature="straight", rest_length=np.diff(stations[k]), director=first)
-        network.add_rod(idx, section, rest, name=f"{rod.family}{rod.index:+d}")
-    if joints == "penalty":
-        network.add_joints(joint_nodes, stiffness_ratio=stiffness_ratio)
-    end_nodes = np.array([[idx[0], idx[-1]] for idx in local_to_global], dtype=np.int64)
-    for k in range(len(net.rods)):
-        network.pin(k, "start", twist="fixed")
-        network.pin(k, "end", twist="fixed")
+    spec = _checked(spec)
+    net = chebyshev_hemisphere(spec.radius, spec.n)
+    if spec.voronoi_length > net.spacing:
+        raise ModelError(f"hemisphere: voronoi_length {spec.voronoi_length} exceeds the joint spacing "
+                         f"{net.spacing:.4g}")
+    section = circular_section(spec.youngs_modulus, spec.shear_modulus, spec.rod_radius, spec.density)
+    layout = lay_out_nodes(net, spec.voronoi_length, shared=spec.joints == "shared")
+    network = _rod_network(spec, net, layout, section)
+    end_nodes = layout.end_nodes
     equator = np.array(net.equator_ends())
     paths = []
-    if configuration == "plane":
-        start = plane_nodes[end_nodes.ravel()]
-        paths.append(NodePath.waypoints(structure, end_nodes.ravel(), [0.0, 1.0], [start, equator.reshape(-1, 3)]))
-    params = dict(
-        n=int(n), radius=float(radius), voronoi_length=float(voronoi_length), rod_radius=float(rod_radius),
-        youngs_modulus=float(youngs_modulus), shear_modulus=float(G), density=float(density), joints=joints,
-        stiffness_ratio=float(stiffness_ratio), configuration=configuration, bump=float(bump),
-    )
+    if spec.configuration == "plane":
+        start = layout.plane_nodes[end_nodes.ravel()]
+        paths.append(NodePath.waypoints(network.structure, end_nodes.ravel(), [0.0, 1.0],
+                                        [start, equator.reshape(-1, 3)]))
     return HemisphereModel(
-        net=net, structure=structure, network=network, configuration=configuration,
-        rod_nodes=[np.asarray(i, dtype=np.int64) for i in local_to_global], rod_stations=stations,
-        joint_nodes=joint_nodes, joint_keys=joint_keys, end_nodes=end_nodes, sphere_nodes=sphere_nodes,
-        plane_nodes=plane_nodes, equator_ends=equator, EI=float(section.EI), params=params, paths=paths,
+        net=net, structure=network.structure, network=network, configuration=spec.configuration,
+        rod_nodes=[np.asarray(i, dtype=np.int64) for i in layout.rod_nodes], rod_stations=layout.stations,
+        joint_nodes=layout.joint_nodes, joint_keys=layout.joint_keys, end_nodes=end_nodes,
+        sphere_nodes=layout.sphere_nodes, plane_nodes=layout.plane_nodes, equator_ends=equator,
+        EI=float(section["EI"]), params={**asdict(spec), "n": int(spec.n)}, paths=paths,
     )
 
 

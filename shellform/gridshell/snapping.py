@@ -10,6 +10,8 @@ point is located by bisection on the displacement.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..solvers.newton import solve_static
@@ -50,32 +52,63 @@ def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, 
     return res.q, int(sum(res.newton_iterations))
 
 
-def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, amplitude: float,
-            method: str = "dynamic", max_tries: int = 4, rounds: int = 10, iterations_per_round: int = 40,
-            time_step: float = 1.0e-3, damping: float = 100.0, t_max: float = 0.5):
+@dataclass(frozen=True)
+class SettleOptions:
+    """How :func:`settle` leaves a critical state and finds the stable one beyond it.
+
+    Attributes
+    ----------
+    amplitude : float
+        Size of each push along the critical (or unstable) mode: largest node
+        displacement, relative to ``R``.
+    method : {"dynamic", "energy", "auto"}
+        Damped implicit Euler dynamics then Newton, a pure energy descent
+        (Newton with regularised steps), or the descent first and the
+        dynamics when it stalls.
+    max_tries : int
+        Pushes in all (a state that ends on a saddle is pushed again).
+    rounds, iterations_per_round : int
+        The energy descent runs in rounds of at most this many Newton
+        iterations, the rod frames following the state in between.
+    time_step, damping, t_max : float
+        Time step [s], mass-proportional damping [1/s] and longest time [s]
+        of the dynamics.
+    """
+
+    amplitude: float
+    method: str = "dynamic"
+    max_tries: int = 4
+    rounds: int = 10
+    iterations_per_round: int = 40
+    time_step: float = 1.0e-3
+    damping: float = 100.0
+    t_max: float = 0.5
+
+
+def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, options: SettleOptions):
     """A stable equilibrium at ``mu`` reached from the critical state ``q0``.
 
     The start is pushed along ``mode_free`` (the critical mode) so that it
-    leaves the unstable state; then either damped dynamics (``"dynamic"``,
-    implicit Euler with time step ``time_step`` and mass-proportional damping
-    ``damping`` [1/s], for at most ``t_max`` seconds) or a pure energy descent
-    (``"energy"``, Newton with regularised steps) carries it downhill, and
-    Newton polishes the result. When it ends on a saddle, it is pushed along
-    the saddle's unstable mode and tried again.
+    leaves the unstable state; then damped dynamics or an energy descent
+    (``options.method``) carries it downhill, and Newton polishes the result.
+    When it ends on a saddle, it is pushed along the saddle's unstable mode
+    and tried again. Returns ``(q, iterations, why)``, ``q`` None when no
+    stable state was found.
     """
+    o = options
     system = setup.system
     free = system.free
     n_x = 3 * setup.model.structure.n_nodes
     q = np.array(q0, dtype=float)
     iterations = 0
-    for _ in range(max_tries):
+    for _ in range(o.max_tries):
         if mode_free is not None:
             d = np.zeros(system.n_dof)
             d[free] = mode_free
             trans = np.abs(d[:n_x]).max()
             if trans > 0:
-                q = q + amplitude * setup.model.radius * d / trans
-        if method == "auto":
+                q = q + o.amplitude * setup.model.radius * d / trans
+        if o.method == "auto":
             # a plain energy descent first; damped dynamics only when it stalls
             frames = setup.model.network.frames.state()
             res = solve_static(system, q, mu=mu, merit="energy", max_iter=30, rtol=1e-9)
@@ -84,17 +117,17 @@ def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, ampli
                 system.accept(res.q)
                 return res.q, iterations, "stable"
             setup.model.network.frames.restore(frames)
-            q, its = dynamic_step_out(setup, q, mu, time_step, damping, t_max)
+            q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max)
             iterations += its
-        elif method == "dynamic":
-            q, its = dynamic_step_out(setup, q, mu, time_step, damping, t_max)
+        elif o.method == "dynamic":
+            q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max)
             iterations += its
         # descend in rounds, accepting the state in between: a snap can turn rod
         # edges far from the stored frames, and the frames must follow
-        for _ in range(rounds):
+        for _ in range(o.rounds):
             # LU fallback here: next to a supercritical bifurcation the stable
             # state has a nearly singular tangent and shifted steps crawl
-            res = solve_static(system, q, mu=mu, merit="energy", max_iter=iterations_per_round, rtol=1e-9)
+            res = solve_static(system, q, mu=mu, merit="energy", max_iter=o.iterations_per_round, rtol=1e-9)
             iterations += res.iterations
             q = res.q
             system.accept(q)
@@ -109,7 +142,7 @@ def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, ampli
         mode_free = lowest_mode(K)
         if mode_free is None:
             return None, iterations, "could not compute the unstable mode of a saddle"
-    return None, iterations, f"still unstable after {max_tries} pushes"
+    return None, iterations, f"still unstable after {o.max_tries} pushes"
 
 
 def locate_stability_loss(setup, qa, mua, qb, mub, tol):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gridshell.study import PUBLISHED, SOURCE, TOLERANCE, indentation_case
+from ..gridshell.study import PUBLISHED, SOURCE, TOLERANCE, IndentationCase, indentation_case
 from ..io.table import plot_curve
 from .report import CaseResult, Check
 
@@ -24,7 +24,7 @@ def case_hemisphere(out, ns=PAPER_N, voronoi_length: float = 1.0e-3) -> CaseResu
     for mode in ("I", "II"):
         forces = []
         for n in ns:
-            run = indentation_case(n, mode, voronoi_length=voronoi_length)
+            run = indentation_case(IndentationCase(n, mode, voronoi_length=voronoi_length))
             forces.append(np.nan if run["max_force"] is None else run["max_force"])  # no path: the fit fails the check
             for k, row in enumerate(run["comparison"]):
                 computed = np.nan if row["computed"] is None else row["computed"]

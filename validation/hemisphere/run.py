@@ -38,10 +38,12 @@ from shellform.gridshell.study import (  # noqa: E402
     SNAPSHOTS,
     SOURCE,
     TOLERANCE,
+    IndentationCase,
     construction_case,
     indentation_case,
 )
 from shellform.io.files import write_text  # noqa: E402
+from shellform.io.hemisphere_plots import render_states  # noqa: E402
 from shellform.io.table import save_figure  # noqa: E402
 
 RUNS = HERE / "runs"
@@ -66,8 +68,9 @@ def run_indentation(n, mode, dl_mm, force=False, **kw):
     snaps = SNAPSHOTS[mode] if (n in (5, 11) and dl_mm == 1.0 and kw.get("imperfection", 1e-4) == 1e-4
                                 and kw.get("joints", "penalty") == "penalty" and kw.get("seed", 0) == 0) else ()
     log(f"run {k}")
-    out = indentation_case(n, mode, voronoi_length=dl_mm * 1e-3, snapshots=snaps,
-                           render_path=HERE / f"configurations_mode{mode}_n{n}.png" if snaps else None, **kw)
+    picture = HERE / f"configurations_mode{mode}_n{n}.png"
+    out = indentation_case(IndentationCase(n, mode, voronoi_length=dl_mm * 1e-3, **kw), snapshots=snaps,
+                           pictures=lambda model, states: render_states(picture, model, states))
     out["key"] = k
     write_text(path, json.dumps(out))
     log(f"  {k}: thresholds {np.round(out['thresholds'], 3).tolist()}, {out['total_s']:.1f} s, {out['n_dof']} DOFs")

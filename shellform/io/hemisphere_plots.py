@@ -6,8 +6,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..io.table import save_figure
-from .hemisphere import HemisphereModel
+from ..gridshell.configurations import central_profiles
+from ..gridshell.hemisphere import HemisphereModel
+from .table import save_figure
 
 
 def _figure(*args, **kw):
@@ -17,6 +18,15 @@ def _figure(*args, **kw):
     import matplotlib.pyplot as plt
 
     return plt.figure(*args, **kw), plt
+
+
+def _save(fig, plt, path, dpi: int) -> None:
+    """Lay the figure out, write it and close it (also when writing fails)."""
+    fig.tight_layout()
+    try:
+        save_figure(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)
 
 
 def draw_gridshell(ax, model: HemisphereModel, q: np.ndarray, highlight: bool = True) -> None:
@@ -39,8 +49,6 @@ def draw_gridshell(ax, model: HemisphereModel, q: np.ndarray, highlight: bool = 
 
 def draw_profiles(ax, model: HemisphereModel, q: np.ndarray) -> None:
     """Side views of the two central rods: ``(x, z)`` of the u rod, ``(y, z)`` of the v rod."""
-    from .configurations import central_profiles
-
     R = model.radius
     for prof, colour, name in zip(central_profiles(model, q), ("tab:red", "tab:blue"), ("u0 (x, z)", "v0 (y, z)")):
         ax.plot(prof[:, 0] / R, prof[:, 1] / R, color=colour, lw=1.4, label=name)
@@ -65,11 +73,7 @@ def render_states(path, model: HemisphereModel, states: Sequence[tuple[str, np.n
         if i == 0:
             ax2.legend(fontsize=7, loc="lower left")
         ax2.tick_params(labelsize=7)
-    fig.tight_layout()
-    try:
-        save_figure(fig, path, dpi=dpi)
-    finally:
-        plt.close(fig)
+    _save(fig, plt, path, dpi)
 
 
 def plot_curves(path, curves: Sequence[dict], title: str = "", published: Sequence[float] = (),
@@ -105,8 +109,4 @@ def plot_curves(path, curves: Sequence[dict], title: str = "", published: Sequen
     if title:
         ax.set_title(title)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    try:
-        save_figure(fig, path, dpi=dpi)
-    finally:
-        plt.close(fig)
+    _save(fig, plt, path, dpi)
