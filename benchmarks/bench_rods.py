@@ -28,7 +28,7 @@ import numpy as np
 
 from shellform.model import Structure
 from shellform.rods.grids import square_grid_polylines
-from shellform.rods.network import RodNetwork, build_rod_system, circular_section, stack_polylines
+from shellform.rods import RestShape, RodNetwork, build_rod_system, circular_section, stack_polylines
 from shellform.rods.statics import solve_incremental
 from shellform.solvers.linear import SingularMatrixError, factorize
 from shellform.validation.cases_rods import G, clamped_stations, straight_rod
@@ -41,7 +41,7 @@ def dome_network(n: int, edges_per_cell: int, span: float = 0.12):
     net = RodNetwork(s)
     sec = circular_section(E=1e11, G=1e11 / 3, radius=1e-3, density=1e3)
     for ix in idx:
-        net.add_rod(ix, **sec, natural_curvature="straight")
+        net.add_rod(ix, sec, RestShape(natural_curvature="straight"))
     net.add_joints(pairs, stiffness_ratio=1e4)
     for r in range(len(idx)):
         net.pin(r, "start", twist="fixed")

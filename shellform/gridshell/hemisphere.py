@@ -36,7 +36,9 @@ from ..assembly import System
 from ..errors import ModelError
 from ..geometry.chebyshev import ChebyshevHemisphere, chebyshev_hemisphere
 from ..model import Structure
-from ..rods.network import NodePath, RodNetwork, build_rod_system, circular_section
+from ..rods.network import RodNetwork, build_rod_system
+from ..rods.node_path import NodePath
+from ..rods.section import RestShape, RodSection, circular_section
 from ..rods.statics import solve_incremental
 from ..solvers.newton import solve_static
 from .layout import NodeLayout, lay_out_nodes
@@ -248,25 +250,16 @@ def _reference_nodes(spec: HemisphereSpec, layout: NodeLayout) -> np.ndarray:
     return ref
 
 
-def _rod_network(spec: HemisphereSpec, net: ChebyshevHemisphere, layout: NodeLayout, section: dict) -> RodNetwork:
+def _rod_network(spec: HemisphereSpec, net: ChebyshevHemisphere, layout: NodeLayout,
+                 section: RodSection) -> RodNetwork:
     """Straight rods along the net's lines, joined at the joints and pinned at both ends."""
     network = RodNetwork(Structure(_reference_nodes(spec, layout)))
     on_net = spec.configuration == "sphere"
     for rod, idx, s in zip(net.rods, layout.rod_nodes, layout.stations):
         # on the net the first director is the surface normal, which the rod carries without twist
         first = layout.sphere_nodes[idx[0]] / spec.radius if on_net else np.array([0.0, 0.0, 1.0])
-        network.add_rod(
-            idx,
-            EA=section["EA"],
-            EI=section["EI"],
-            GJ=section["GJ"],
-            mass_per_length=section["mass_per_length"],
-            rotational_inertia=section["rotational_inertia"],
-            natural_curvature="straight",
-            rest_length=np.diff(s),
-            director=first,
-            name=f"{rod.family}{rod.index:+d}",
-        )
+        rest = RestShape(natural_curvature="straight", rest_length=np.diff(s), director=first)
+        network.add_rod(idx, section, rest, name=f"{rod.family}{rod.index:+d}")
     if spec.joints == "penalty":
         network.add_joints(layout.joint_nodes, stiffness_ratio=spec.stiffness_ratio)
     for k in range(len(net.rods)):
@@ -305,7 +298,7 @@ def build_hemisphere(spec: HemisphereSpec) -> HemisphereModel:
         rod_nodes=[np.asarray(i, dtype=np.int64) for i in layout.rod_nodes], rod_stations=layout.stations,
         joint_nodes=layout.joint_nodes, joint_keys=layout.joint_keys, end_nodes=end_nodes,
         sphere_nodes=layout.sphere_nodes, plane_nodes=layout.plane_nodes, equator_ends=equator,
-        EI=float(section["EI"]), params={**asdict(spec), "n": int(spec.n)}, paths=paths,
+        EI=float(section.EI), params={**asdict(spec), "n": int(spec.n)}, paths=paths,
     )
 
 
