@@ -68,7 +68,7 @@ def _cmd_sweep(args) -> int:
     progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
     options = SweepOptions(workers=args.workers, scheduler=args.scheduler, rerun=args.rerun, plot_y=args.plot)
     try:
-        rows = run_sweep(args.scene, args.param, args.out, progress=progress, options=options)
+        rows = run_sweep(_scene_path(args.scene), args.param, args.out, progress=progress, options=options)
     except KeyboardInterrupt:
         print(f"shellform: interrupted; the finished cases are in {Path(args.out).resolve() / 'sweep.csv'}, and "
               "the same command runs the rest", file=sys.stderr)
@@ -107,7 +107,7 @@ def main(argv=None) -> int:
     val.add_argument("--quiet", action="store_true", help="no progress output")
     val.set_defaults(func=_cmd_validate)
     sw = sub.add_parser("sweep", help="run a parameter study: one scene, many values, one table")
-    sw.add_argument("scene", help="base scene TOML file")
+    sw.add_argument("scene", help="base scene: a TOML file or the name of a built-in scene")
     sw.add_argument("--param", action="append", required=True, metavar="KEY=V1,V2,...",
                     help="scene key path and its values, e.g. members[0].EA=1e3,1e4 (repeatable: all combinations)")
     sw.add_argument("--out", default="sweep", help="output directory (default: ./sweep); a sweep run again into "

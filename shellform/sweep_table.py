@@ -89,6 +89,7 @@ class SweepTable:
         self.keys = list(keys)
         self.n_cases = n_cases
         self.rows: dict[int, dict] = {}
+        #: the units the case summaries give, by dotted name (only those of columns are used)
         self.units: dict[str, str] = {}
         self.kept: list[str] = []
         self.t0 = time.perf_counter()
@@ -114,15 +115,21 @@ class SweepTable:
         rest = sorted({k for r in self.rows.values() for k in r} - set(first))
         return first + rest
 
+    def column_units(self) -> dict[str, str]:
+        """The known unit of each column: a parameter's from the scene reference, a result's from the summaries."""
+        units = {k: parameter_unit(k) for k in self.keys}
+        units.update({c: self.units[c] for c in self.columns if c in self.units and c not in units})
+        return {c: u for c, u in units.items() if u}
+
     def write(self) -> None:
         from .io import write_json
         from .io.table import write_csv
 
-        rows, columns = self.ordered, self.columns
-        write_csv(self.out / "sweep.csv", {c: [r.get(c, "") for r in rows] for c in columns}, columns)
+        rows, columns, units = self.ordered, self.columns, self.column_units()
+        write_csv(self.out / "sweep.csv", {c: [r.get(c, "") for r in rows] for c in columns}, columns, units=units)
         write_json(self.out / "sweep.json", {
             "parameters": self.keys, "cases": self.n_cases, "done": len(rows), "kept": sorted(self.kept),
-            "wall_time_s": time.perf_counter() - self.t0, "units": self.units, "rows": rows})
+            "wall_time_s": time.perf_counter() - self.t0, "units": units, "rows": rows})
 
     def plot(self, y: str | None, title: str, progress) -> Path | None:
         """Draw ``sweep.png``: column ``y`` (default: see :data:`DEFAULT_PLOT`) against the first parameter.
@@ -138,7 +145,7 @@ class SweepTable:
         """
         from .io.table import plot_curve
 
-        columns = self.columns
+        columns, units = self.columns, self.column_units()
         if y is not None and y not in columns:
             known = ", ".join(c for c in columns if c != "case")
             raise SceneError("--plot", f"no entry {y!r} in the case summaries (the table is in "
@@ -159,7 +166,7 @@ class SweepTable:
             progress(f"sweep.png: {left_out} case(s) without a number in {x!r} or {y!r} left out")
         try:
             return plot_curve(self.out / "sweep.png", [p[0] for p in points], [p[1] for p in points],
-                              axis_label(x, parameter_unit(x)), axis_label(y, self.units.get(y, "")),
+                              axis_label(x, units.get(x, "")), axis_label(y, units.get(y, "")),
                               f"{title}: {y} against {x}")
         except Exception as exc:  # noqa: BLE001 (the table is written; a plot that fails is only reported)
             progress(f"sweep.png not drawn: {type(exc).__name__}: {exc}")

@@ -159,7 +159,9 @@ def test_axis_units_come_from_the_scene_reference_and_the_summaries(truss, tmp_p
     labels = []
     monkeypatch.setattr(shellform.io.table, "plot_curve", lambda path, x, y, xl, yl, title: labels.append((xl, yl)))
     run_sweep(truss, ["members[0].EA=1e4,2e4"], tmp_path / "a", workers=1)
-    assert labels[-1] == ("members[0].EA [N]", "max_displacement")  # the summaries give no units: bare key
+    assert labels[-1] == ("members[0].EA [N]", "max_displacement")  # the summaries give no unit for it: bare key
+    assert read_csv(tmp_path / "a" / "sweep.csv")["members[0].EA"].tolist() == [1e4, 2e4]  # header "... [N]"
+    assert (tmp_path / "a" / "sweep.csv").read_text().startswith("case,members[0].EA [N],status,")
     # a summary that gives units: the axis says them
     real = shellform.sweep.run_case
     monkeypatch.setattr(shellform.sweep, "run_case",
