@@ -447,9 +447,10 @@ SCENE = Table(
             doc="What to write besides summary.json.",
             keys={
                 "formats": Key("str_list", "The final state in each format (state.vtu, state.3dm, ...; 3dm: Rhino, "
-                               "needs the rhino extra). Paths and time series are XDMF whatever this says. Form "
+                               "needs the rhino extra; compas: state.compas.json, a COMPAS graph with the member "
+                               "results on its edges). Paths and time series are XDMF whatever this says. Form "
                                "finding writes its VTU meshes (see meshes) and, with '3dm', form.3dm.",
-                               default=["vtu", "xdmf"], choices=("vtu", "vtk", "xdmf", "3dm")),
+                               default=["vtu", "xdmf"], choices=("vtu", "vtk", "xdmf", "3dm", "compas")),
                 "meshes": Key("bool", "Form finding: write the hanging net, the inverted net and the inverted "
                               "shell surface (hanging.vtu, inverted.vtu, inverted_shell.vtu).", default=True),
             },

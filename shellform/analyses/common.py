@@ -54,7 +54,11 @@ def write_final_state(scene: dict, out: Path, system, q, lam: float, formats=Non
     files = []
     for fmt in formats if formats is not None else scene["output"]["formats"]:
         path = out / f"state.{fmt}"
-        if fmt == "xdmf":
+        if fmt == "compas":
+            from ..io.compas_graph import write_compas_graph
+
+            path = write_compas_graph(out / "state.compas.json", system, q, lam)
+        elif fmt == "xdmf":
             write_series(path, system, [(lam, q, lam)], time_name="load factor")
             files.append(path.with_suffix(".h5").name)
         elif fmt == "3dm":
