@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..rods.hinge import (
+    BinormalJacobian,
     HingeEffect,
     curvature_binormal_jacobian,
     hessian_of_projected_binormal,
@@ -88,10 +89,10 @@ class RodBending(HingeEffect):
                 t0, t1, kb, chi, J, kb
             )
         if c.size:
-            for j, te in enumerate((t0, t1)):
+            for j in (0, 1):
                 edges = self.hinge_edges[c, j]
                 f, gj, Hj = material_curvature_term(
-                    t0[c], t1[c], kb[c], chi[c], J[c], j, te[c], self._stored_frame(edges),
+                    t0[c], t1[c], BinormalJacobian(kb[c], chi[c], J[c]), j, self._stored_frame(edges),
                     self.omega_bar[c, j], theta[c, j],
                 )
                 e[c] -= f

@@ -6,7 +6,7 @@ from .network import Rod, RodNetwork, build_rod_system
 from .node_path import NodePath
 from .polylines import resample_polyline, stack_polylines
 from .section import RestShape, RodSection, circular_section
-from .statics import IncrementalResult, SupportsAt, accept_state, solve_incremental
+from .statics import IncrementalOptions, IncrementalResult, SupportsAt, accept_state, solve_incremental
 
 __all__ = [
     "ReferenceFrames",
@@ -20,6 +20,7 @@ __all__ = [
     "resample_polyline",
     "stack_polylines",
     "square_grid_polylines",
+    "IncrementalOptions",
     "IncrementalResult",
     "SupportsAt",
     "accept_state",

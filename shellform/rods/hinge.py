@@ -28,6 +28,8 @@ hinge ``omega^j = (kb . m2^j, -kb . m1^j)``; twist
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..effects.base import Effect, element_pattern, scatter
@@ -39,23 +41,31 @@ _I3 = np.eye(3)
 # -- layer 1: curvature binormal ------------------------------------------------------
 
 
-def curvature_binormal_jacobian(t0: np.ndarray, t1: np.ndarray):
-    """Curvature binormal and its Jacobian with respect to ``(t0, t1)``.
+class BinormalJacobian(NamedTuple):
+    """The curvature binormal of each hinge with the quantities its derivatives are built from.
 
-    Returns
-    -------
+    Attributes
+    ----------
     kb : ndarray (n, 3)
     chi : ndarray (n,)
         ``1 + t0 . t1``.
     J : ndarray (n, 3, 6)
         ``d kb / d(t0, t1)``.
     """
+
+    kb: np.ndarray
+    chi: np.ndarray
+    J: np.ndarray
+
+
+def curvature_binormal_jacobian(t0: np.ndarray, t1: np.ndarray) -> BinormalJacobian:
+    """Curvature binormal and its Jacobian with respect to ``(t0, t1)``."""
     chi = 1.0 + dot(t0, t1)
     kb = 2.0 * np.cross(t0, t1) / chi[:, None]
     J = np.empty((len(t0), 3, 6))
     J[:, :, :3] = (-2.0 * skew(t1) - kb[:, :, None] * t1[:, None, :]) / chi[:, None, None]
     J[:, :, 3:] = (2.0 * skew(t0) - kb[:, :, None] * t0[:, None, :]) / chi[:, None, None]
-    return kb, chi, J
+    return BinormalJacobian(kb, chi, J)
 
 
 def hessian_of_projected_binormal(t0, t1, kb, chi, J, p):
@@ -204,7 +214,7 @@ def material_curvature_value(kb, t_edge, frame, omega_bar, theta):
     return dot(p, A[:, None] * U + B[:, None] * V)
 
 
-def material_curvature_term(t0, t1, kb, chi, J, edge, t_edge, frame, omega_bar, theta):
+def material_curvature_term(t0, t1, binormal: BinormalJacobian, edge, frame, omega_bar, theta):
     """Value and derivatives over ``y = (t0, t1, theta0, theta1)`` of ``omega_bar . omega^j``.
 
     ``omega_bar . omega^j = kb . W`` with ``W = omega_bar_1 m2 - omega_bar_2 m1``,
@@ -212,10 +222,12 @@ def material_curvature_term(t0, t1, kb, chi, J, edge, t_edge, frame, omega_bar, 
 
     Parameters
     ----------
+    t0, t1 : (n, 3)
+        Tangents of the edges at the trial state.
+    binormal : BinormalJacobian
+        Of ``t0, t1`` (:func:`curvature_binormal_jacobian`).
     edge : {0, 1}
         Which edge of the hinge.
-    t_edge : (n, 3)
-        Tangent of that edge at the trial state.
     frame : (n, 3, 3)
         Stored frame of that edge, columns ``(u, v, s)``.
     omega_bar : (n, 2)
@@ -228,6 +240,8 @@ def material_curvature_term(t0, t1, kb, chi, J, edge, t_edge, frame, omega_bar, 
     f : (n,), g : (n, 8), H : (n, 8, 8)
     """
     n = len(t0)
+    kb, chi, J = binormal
+    t_edge = (t0, t1)[edge]
     ct, st = np.cos(theta), np.sin(theta)
     w1, w2 = omega_bar[:, 0], omega_bar[:, 1]
     A = -w1 * st - w2 * ct  # coefficient of u in W

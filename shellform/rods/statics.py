@@ -12,6 +12,7 @@ paths.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -90,45 +91,69 @@ class IncrementalResult:
         return len(self.fractions)
 
 
+@dataclass(frozen=True)
+class IncrementalOptions:
+    """Step control of :func:`solve_incremental`.
+
+    Attributes
+    ----------
+    n_steps : int
+        Initial number of equal steps.
+    min_fraction : float
+        Smallest step, as a fraction of the whole ramp, before the solve gives up.
+    keep_states : bool
+        Keep every accepted state in the result.
+    """
+
+    n_steps: int = 10
+    min_fraction: float = 1e-6
+    keep_states: bool = False
+
+
 def solve_incremental(
     system,
     lam: float = 1.0,
     mu: float = 0.0,
-    n_steps: int = 10,
+    *,
     q0: np.ndarray | None = None,
     paths: Sequence = (),
     t_end: float = 1.0,
-    min_fraction: float = 1e-6,
-    keep_states: bool = False,
+    options: IncrementalOptions | None = None,
     callback: Callable[[float, StaticResult], None] | None = None,
-    **newton,
+    **overrides,
 ) -> IncrementalResult:
     """Equilibrium under a load ramped in steps: ``lam s``, ``mu s``, paths at ``t_end s``, ``s`` from 0 to 1.
 
     Each step starts from the last accepted state, is solved by
-    :func:`~shellform.solvers.newton.solve_static` (keyword arguments
-    ``newton`` are passed on) and, once converged, accepted by the System
-    (rod frames transported). A failed step is halved, down to
-    ``min_fraction``.
+    :func:`~shellform.solvers.newton.solve_static` and, once converged,
+    accepted by the System (rod frames transported). A failed step is
+    halved, down to ``min_fraction``.
 
     Parameters
     ----------
     system : System
     lam, mu : float
         Final load factor and prescribed-displacement parameter.
-    n_steps : int
-        Initial number of equal steps.
     q0 : ndarray, optional
         State at ``s = 0`` (default the reference state).
     paths : sequence of NodePath
         Supports moved along paths, evaluated at ``t = t_end s``.
+    options : IncrementalOptions, optional
+        Step control (defaults: :class:`IncrementalOptions`).
     callback : callable, optional
         ``callback(s, result)`` after every accepted step.
+    **overrides
+        Any field of :class:`IncrementalOptions` by name (``n_steps``, ...);
+        the others go to every Newton solve as its options by name
+        (``rtol``, ``max_iter``, ...).
     """
+    steps = {f.name for f in dataclasses.fields(IncrementalOptions)}
+    o = dataclasses.replace(options or IncrementalOptions(), **{k: v for k, v in overrides.items() if k in steps})
+    newton = {k: v for k, v in overrides.items() if k not in steps}
     t0 = time.perf_counter()
     q = system.state(base=q0) if q0 is None else np.array(q0, dtype=float)
     out = IncrementalResult(q=q, success=False, message="")
-    s, ds = 0.0, 1.0 / max(int(n_steps), 1)
+    s, ds = 0.0, 1.0 / max(int(o.n_steps), 1)
     while s < 1.0 - 1e-14:
         ds = min(ds, 1.0 - s)
         target = s + ds
@@ -141,7 +166,7 @@ def solve_incremental(
             s = target
             out.fractions.append(s)
             out.iterations.append(res.iterations)
-            if keep_states:
+            if o.keep_states:
                 out.states.append(q.copy())
             if callback is not None:
                 callback(s, res)
@@ -150,7 +175,7 @@ def solve_incremental(
                 ds *= 1.5
         else:
             ds *= 0.5
-            if ds < min_fraction:
+            if ds < o.min_fraction:
                 out.q = q
                 out.message = f"step from s = {s:.6g} failed even at increment {2 * ds:.3g}: {res.message}"
                 out.wall_time_s = time.perf_counter() - t0
