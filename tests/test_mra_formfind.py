@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from shellform import MechanismError, ModelError, SceneError
+from shellform.analyses.form_finding import run_mra_case
 from shellform.geometry import dish, disk_grid, rectangle_grid
 from shellform.mra import (
     HypostaticWarning,
@@ -19,7 +20,6 @@ from shellform.mra import (
     invert,
     kmeans_1d,
     length_statistics,
-    run_mra_case,
     surface_start,
 )
 

@@ -1,7 +1,8 @@
 """Find a form, export it, then check whether it snaps.
 
-:func:`run_form_finding` runs an MRA form-finding scene through
-:func:`shellform.mra.run_mra_case`: the relaxation state is checkpointed every
+:func:`run_mra_case` form-finds one MRA case (:func:`shellform.mra.solve_mra_case`)
+and writes its meshes and summary. :func:`run_form_finding` runs an MRA
+form-finding scene through it: the relaxation state is checkpointed every
 few seconds (``relaxation_checkpoint.npz``, written atomically) so that
 ``--resume`` restarts from the last saved state, and the found form is
 exported for design: the inverted shell as a quad surface mesh
@@ -36,6 +37,8 @@ import numpy as np
 
 from ..errors import MechanismError, ModelError, SceneError
 from ..io.checkpoint import CheckpointMismatch, load_checkpoint, save_checkpoint
+from ..io.net_meshes import write_net_meshes
+from ..io.summary import write_json
 
 ROD_DEFAULTS = {"E": 210.0e9, "radius": 0.02, "density": 0.0}
 RELAXATION_CHECKPOINT = "relaxation_checkpoint.npz"
@@ -135,6 +138,55 @@ def _resume_state(checkpoint: RelaxationCheckpoint, params: dict, resume: bool, 
     return data["q"], data["v"] if same else None
 
 
+# -- the files of a found form -----------------------------------------------------------------
+
+
+def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, q0: np.ndarray | None = None,
+                 v0: np.ndarray | None = None, callback=None, export=None,
+                 summary_file: str | None = "summary.json") -> dict:
+    """Form-find one case and write its results.
+
+    Parameters
+    ----------
+    params, progress, q0, v0, callback
+        See :func:`shellform.mra.solve_mra_case`.
+    out_dir : path-like
+        Directory for ``hanging.vtu``, ``inverted.vtu`` and ``summary.json``.
+    export : callable, optional
+        ``export(result, inverted, out_dir) -> list of file names``: further
+        files written after the meshes (``inverted`` is None when the
+        inversion failed).
+    summary_file : str or None
+        Name of the summary written to ``out_dir``; None: none (a caller that
+        runs more stages writes one summary of them all).
+
+    Returns
+    -------
+    dict
+        The case's summary, with the ``files`` written and the ``wall_time_s`` of it all.
+    """
+    from ..mra.case import solve_mra_case
+
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    case = solve_mra_case(params, progress, q0=q0, v0=v0, callback=callback)
+    files = []
+    if case.meshes:
+        files += write_net_meshes(out, case.result, case.inverted)
+        if case.length_control is not None:
+            files += write_net_meshes(out, case.length_control.result, case.length_control_inverted,
+                                      tag="_length_control")
+    if export is not None:
+        files += export(case.result, case.inverted, out)
+    summary = case.summary
+    summary["files"] = files + ["summary.json"]
+    summary["wall_time_s"] = time.perf_counter() - t0
+    if summary_file is not None:
+        write_json(out / summary_file, summary)
+    return summary
+
+
 # -- exports of a found form ------------------------------------------------------------------
 
 
@@ -167,7 +219,6 @@ def export_form(scene: dict, res, inv, out: Path) -> list[str]:
 
 def _find_form(scene: dict, out: Path, progress: Progress, resume: bool, keep: dict | None = None) -> dict:
     """Run the form finding with checkpoints and exports; ``keep`` receives the result objects."""
-    from ..mra.case import run_mra_case
     from ..scene import mra_params
 
     params = mra_params(scene)

@@ -10,18 +10,21 @@ Typical use::
     dome = invert(res)                   # Hooke: the mirrored shell in compression
     stats = length_statistics(res.length, tol=0.01)
 
-:func:`run_mra_case` does all of it for one case described by a dictionary.
+:func:`solve_mra_case` does all of it for one case described by a dictionary
+(:func:`shellform.analyses.form_finding.run_mra_case` also writes its files).
 """
 
-from .case import build_grid, build_net, run_mra_case
-from .formfind import FormFindingResult, HypostaticWarning, OverstretchWarning, form_find, rope_state
+from .case import MraCase, build_grid, build_net, solve_mra_case
+from .formfind import (FormFindingOptions, FormFindingResult, HypostaticWarning, OverstretchWarning, form_find,
+                       rope_state)
 from .hypostatic import HypostaticReport, hypostatic_check
 from .inversion import InvertedShell, invert
 from .lengths import LengthControlResult, control_lengths, kmeans_1d, length_statistics
-from .net import HangingNet, hanging_net, support_nodes
+from .net import HangingNet, NetOptions, hanging_net, support_nodes
 from .start import fit_height_field, surface_start
 
 __all__ = [
+    "FormFindingOptions",
     "FormFindingResult",
     "HangingNet",
     "HypostaticReport",
@@ -29,6 +32,8 @@ __all__ = [
     "OverstretchWarning",
     "InvertedShell",
     "LengthControlResult",
+    "MraCase",
+    "NetOptions",
     "build_grid",
     "build_net",
     "control_lengths",
@@ -40,7 +45,7 @@ __all__ = [
     "kmeans_1d",
     "length_statistics",
     "rope_state",
-    "run_mra_case",
+    "solve_mra_case",
     "support_nodes",
     "surface_start",
 ]

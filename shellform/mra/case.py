@@ -1,10 +1,11 @@
 """One MRA form-finding case from a parameter dictionary, start to finish.
 
-:func:`run_mra_case` builds the grid, the hanging net and its start state,
+:func:`solve_mra_case` builds the grid, the hanging net and its start state,
 form-finds, inverts, computes the length statistics (and optionally runs the
-length control and the flat-versus-surface start comparison), writes the
-hanging and inverted meshes (VTU) and ``summary.json``, and returns the
-summary. The parameter layout (the ``[mra]`` scene tables) is documented in
+length control and the flat-versus-surface start comparison), and returns the
+summary with the results; it writes no files
+(:func:`shellform.analyses.form_finding.run_mra_case` writes the meshes and
+``summary.json``). The parameter layout (the ``[mra]`` scene tables) is documented in
 ``validation/mra/README.md``; every key has a default except the geometry
 and the supports.
 """
@@ -14,22 +15,18 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import fields
-from pathlib import Path
+from dataclasses import dataclass, fields
 
-import meshio
 import numpy as np
 
 from ..errors import ModelError, SceneError
 from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
-from ..io.mesh import write_mesh
-from ..io.summary import write_json
 from ..solvers.relaxation import START_STATES, Refinements, RelaxationOptions
 from .formfind import (STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, coarse_net_outcome,
                        coarse_net_progress, form_find)
 from .inversion import InvertedShell, invert
-from .lengths import control_lengths, length_statistics
+from .lengths import LengthControlResult, control_lengths, length_statistics
 from .net import HangingNet, hanging_net
 from .start import coarse_force_density_start, fit_height_field, surface_start
 
@@ -216,41 +213,80 @@ def _coarsened(p: dict, factor: int) -> dict:
     return {**p, "geometry": g, "supports": sup}
 
 
-def net_mesh(net: HangingNet, positions, member_fields: dict, point_fields: dict | None = None) -> meshio.Mesh:
-    """Ropes (lines) and grid faces (quads) at ``positions`` with per-rope data.
+@dataclass
+class MraCase:
+    """A form-found case: its summary and the results its files are written from.
 
-    The faces carry no rope results: their cells of a rope field are NaN (not
-    computed), never a zero that colours every face as an unloaded, taut rope.
+    Attributes
+    ----------
+    summary : dict
+        JSON-ready: ``converged``, ``iterations``, ``max_velocity``,
+        ``max_acceleration``, ``n_slack_ropes``, ``rise``, ``rope_lengths``
+        (statistics) and more (hypostatic check, reactions, inversion, start
+        comparison, length control); no files and no total wall time yet.
+    result : FormFindingResult
+    inverted : InvertedShell or None
+        None when the inversion failed (``summary["inverted"]["error"]`` says why).
+    meshes : bool
+        Whether the case asks for its meshes (``output.meshes``).
+    length_control : LengthControlResult, optional
+        When the case asks for the length control.
+    length_control_inverted : InvertedShell, optional
+        Its inverted shell (only with ``meshes``; None when the inversion failed).
     """
-    cells = [("line", net.rope_edges), ("quad", net.grid.quads)]
-    cell_data = {k: [np.asarray(v, dtype=float), np.full(len(net.grid.quads), np.nan)] for k, v in member_fields.items()}
-    support = np.zeros(net.structure.n_nodes)
-    support[net.supports] = 1.0
-    point_data = {"support": support, **(point_fields or {})}
-    return meshio.Mesh(points=np.asarray(positions, dtype=float), cells=cells, point_data=point_data,
-                       cell_data=cell_data)
+
+    summary: dict
+    result: FormFindingResult
+    inverted: InvertedShell | None
+    meshes: bool
+    length_control: LengthControlResult | None = None
+    length_control_inverted: InvertedShell | None = None
 
 
-def write_meshes(out: Path, res: FormFindingResult, inv: InvertedShell, tag: str = "") -> list[str]:
-    net = res.net
-    hang = net_mesh(net, res.positions,
-                    {"tension": res.tension, "slack": res.slack.astype(float), "length": res.length,
-                     "rest_length": net.rest_length, "strain": res.strain, "family": net.family.astype(float)},
-                    {"displacement": res.positions - net.structure.nodes})
-    names = [f"hanging{tag}.vtu"]
-    write_mesh(out / names[0], hang)
-    if inv is not None:
-        dome = net_mesh(net, inv.positions, {"axial_force": inv.force, "length": res.length,
-                                             "family": net.family.astype(float)})
-        names.append(f"inverted{tag}.vtu")
-        write_mesh(out / names[1], dome)
-    return names
+def _with_callback(options: dict, progress: Callable[[str], None] | None, callback) -> dict:
+    """The form-finding keywords of the full net: the coarse nets' steps shown, ``callback`` called too."""
+    main_options = dict(options)
+    if progress is not None:
+        main_options["progress"] = progress  # the coarse nets' steps, on large nets
+    if callback is not None:
+        shown = options.get("callback")
+        main_options["callback"] = callback if shown is None else (lambda info: bool(shown(info)) | bool(callback(info)))
+    return main_options
 
 
-def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None = None, *,
-                 q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None, export=None,
-                 summary_file: str | None = "summary.json") -> dict:
-    """Form-find one case and write its results.
+def _compare_flat(net: HangingNet, options: dict, res: FormFindingResult, start_note: dict, say) -> dict:
+    """The same net from the flat planform: its cost and shape against the case's start."""
+    # the planform itself, as in the paper (without q0 the implicit scheme would start
+    # from the force-density shape)
+    flat = form_find(net, None, **{**options, "start": "reference"})
+    prep = start_note.get("preparation_s", 0.0)
+    say(f"flat start: {flat.relaxation.iterations} iterations, {flat.relaxation.wall_time_s:.3g} s; "
+        f"{start_note['type']} start: {res.relaxation.iterations} iterations, "
+        f"{res.relaxation.wall_time_s + prep:.3g} s with its preparation")
+    return {
+        "flat": {"converged": bool(flat.converged), "iterations": int(flat.relaxation.iterations),
+                 "wall_time_s": float(flat.relaxation.wall_time_s),
+                 "max_position_difference": float(np.max(np.abs(flat.positions - res.positions)))},
+        "iterations_saved": int(flat.relaxation.iterations - res.relaxation.iterations),
+        "wall_time_saved_s": float(flat.relaxation.wall_time_s - res.relaxation.wall_time_s - prep),
+    }
+
+
+def _inverted(res: FormFindingResult, summary: dict, say) -> InvertedShell | None:
+    """The inverted shell, its summary recorded; None (and the reason recorded) when it cannot be built."""
+    try:
+        inv = invert(res)
+        summary["inverted"] = inv.summary()
+    except ModelError as exc:
+        inv = None
+        summary["inverted"] = {"error": str(exc)}
+        say(f"inversion skipped: {exc}")
+    return inv
+
+
+def solve_mra_case(params: dict, progress: Callable[[str], None] | None = None, *,
+                   q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None) -> MraCase:
+    """Form-find one case: start shape, relaxation, inversion, length statistics and control.
 
     Parameters
     ----------
@@ -258,8 +294,6 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
         The case (see ``validation/mra/README.md``): ``geometry``, ``supports``,
         and optionally ``ropes``, ``masses``, ``loads``, ``solver``, ``start``,
         ``lengths``, ``output``.
-    out_dir : path-like
-        Directory for ``hanging.vtu``, ``inverted.vtu`` and ``summary.json``.
     progress : callable, optional
         Receives progress lines.
     q0, v0 : ndarray, optional
@@ -268,25 +302,7 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
     callback : callable, optional
         Also receives every ``RelaxationProgress`` of the form finding (for
         checkpoints); returning True stops it.
-    export : callable, optional
-        ``export(result, inverted, out_dir) -> list of file names``: further
-        files written after the meshes (``inverted`` is None when the
-        inversion failed).
-    summary_file : str or None
-        Name of the summary written to ``out_dir``; None: none (a caller that
-        runs more stages writes one summary of them all).
-
-    Returns
-    -------
-    dict
-        The summary: ``converged``, ``iterations``, ``max_velocity``,
-        ``max_acceleration``, ``n_slack_ropes``, ``rise``, ``rope_lengths``
-        (statistics), ``wall_time_s`` and more (hypostatic check, reactions,
-        inversion, start comparison, length control).
     """
-    t0 = time.perf_counter()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     p = _merge(params)
     say = progress or (lambda msg: None)
     net = build_net(p)
@@ -297,13 +313,7 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
         q0, start_note = start_state(p, net, options, progress)
     else:
         start_note = {"type": "resumed"}
-    main_options = dict(options)
-    if progress is not None:
-        main_options["progress"] = progress  # the coarse nets' steps, on large nets
-    if callback is not None:
-        shown = options.get("callback")
-        main_options["callback"] = callback if shown is None else (lambda info: bool(shown(info)) | bool(callback(info)))
-    res = form_find(net, q0, v0=v0, **main_options)
+    res = form_find(net, q0, v0=v0, **_with_callback(options, progress, callback))
     say(res.relaxation.message)
     summary = {"name": p["name"], **res.summary()}
     summary["relaxation_wall_time_s"] = summary.pop("wall_time_s")
@@ -311,48 +321,19 @@ def run_mra_case(params: dict, out_dir, progress: Callable[[str], None] | None =
                         "iterations": int(res.relaxation.iterations),
                         "wall_time_s": float(res.relaxation.wall_time_s)}
     if p["start"]["compare_flat"] and start_note["type"] != "flat":
-        # the planform itself, as in the paper (without q0 the implicit scheme would start
-        # from the force-density shape)
-        flat = form_find(net, None, **{**options, "start": "reference"})
-        prep = start_note.get("preparation_s", 0.0)
-        summary["start"]["flat"] = {
-            "converged": bool(flat.converged), "iterations": int(flat.relaxation.iterations),
-            "wall_time_s": float(flat.relaxation.wall_time_s),
-            "max_position_difference": float(np.max(np.abs(flat.positions - res.positions))),
-        }
-        summary["start"]["iterations_saved"] = int(flat.relaxation.iterations - res.relaxation.iterations)
-        summary["start"]["wall_time_saved_s"] = float(flat.relaxation.wall_time_s - res.relaxation.wall_time_s
-                                                      - prep)
-        say(f"flat start: {flat.relaxation.iterations} iterations, {flat.relaxation.wall_time_s:.3g} s; "
-            f"{start_note['type']} start: {res.relaxation.iterations} iterations, "
-            f"{res.relaxation.wall_time_s + prep:.3g} s with its preparation")
-    try:
-        inv = invert(res)
-        summary["inverted"] = inv.summary()
-    except ModelError as exc:
-        inv = None
-        summary["inverted"] = {"error": str(exc)}
-        say(f"inversion skipped: {exc}")
+        summary["start"].update(_compare_flat(net, options, res, start_note, say))
+    case = MraCase(summary, res, _inverted(res, summary, say), meshes=bool(p["output"]["meshes"]))
     L = p["lengths"]
     summary["rope_lengths"] = length_statistics(res.length, float(L["tolerance"]), L["target"])
-    files = []
-    if p["output"]["meshes"]:
-        files += write_meshes(out, res, inv)
     if L["control"]:
         lc = control_lengths(res, int(L["n_classes"]), float(L["tolerance"]), int(L["rounds"]), **{
             **options, "callback": None})
         summary["length_control"] = lc.summary()
-        if p["output"]["meshes"]:
+        case.length_control = lc
+        if case.meshes:
             try:
-                lc_inv = invert(lc.result)
+                case.length_control_inverted = invert(lc.result)
             except ModelError:
-                lc_inv = None
-            files += write_meshes(out, lc.result, lc_inv, tag="_length_control")
+                pass
         say(f"length control: conforming ropes per round {lc.n_conforming}")
-    if export is not None:
-        files += export(res, inv, out)
-    summary["files"] = files + ["summary.json"]
-    summary["wall_time_s"] = time.perf_counter() - t0
-    if summary_file is not None:
-        write_json(out / summary_file, summary)
-    return summary
+    return case

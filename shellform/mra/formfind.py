@@ -14,6 +14,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from dataclasses import fields as dataclass_fields
 
 import numpy as np
 
@@ -209,25 +210,12 @@ def coarse_net_outcome(coarse: FormFindingResult, seconds: float) -> str:
             f"after {r.iterations} steps, {seconds:.1f} s")
 
 
-def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: RelaxationOptions | None = None,
-              strain_limit: float = STRAIN_LIMIT, start: str = "auto", coarsening: int = 3,
-              progress: Callable[[str], None] | None = None,
-              callback: Callable[[RelaxationProgress], bool | None] | None = None,
-              v0: np.ndarray | None = None, **fields):
-    """Let the net fall into its hanging shape.
+@dataclass(frozen=True)
+class FormFindingOptions:
+    """Where :func:`form_find` starts and what it reports, beyond the relaxation's own options.
 
-    Parameters
+    Attributes
     ----------
-    net : HangingNet
-    q0 : ndarray, optional
-        Start state (overrides ``start``).
-    options : RelaxationOptions, optional
-        The relaxation's scheme, tolerances and limits
-        (:class:`~shellform.solvers.relaxation.RelaxationOptions`). Its
-        ``max_wall_time`` limits the whole form finding, the coarse nets included.
-    strain_limit : float
-        Net ropes strained beyond this at rest are named in an
-        :class:`OverstretchWarning` (default 1 %).
     start : {"auto", "reference", "force_density", "coarse_net"}
         Where to start without ``q0``: the planform (``"reference"``, a flat
         start as in the MRA paper), the force-density shape
@@ -242,6 +230,73 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
         explicit schemes.
     coarsening : int
         Grid lines kept by the ``"coarse_net"`` start (every third by default).
+    strain_limit : float
+        Net ropes strained beyond this at rest are named in an
+        :class:`OverstretchWarning` (default 1 %).
+    """
+
+    start: str = "auto"
+    coarsening: int = 3
+    strain_limit: float = STRAIN_LIMIT
+
+
+def _split_options(options: RelaxationOptions | None, finding: FormFindingOptions | None,
+                   fields: dict) -> tuple[RelaxationOptions, FormFindingOptions]:
+    """Both option objects, with the fields given one by one put where they belong."""
+    own = {f.name for f in dataclass_fields(FormFindingOptions)}
+    finding = replace(finding or FormFindingOptions(), **{k: v for k, v in fields.items() if k in own})
+    options = RelaxationOptions() if options is None else options
+    rest = {k: v for k, v in fields.items() if k not in own}
+    if rest:
+        options = replace(options, **rest)
+    return options, finding
+
+
+def _coarse_start(net: HangingNet, system, options: RelaxationOptions, finding: FormFindingOptions,
+                  by_default: bool, progress: Callable[[str], None] | None, notes: list):
+    """The start shape from the net's coarse net: ``(q0, coarse result, seconds)``.
+
+    ``q0`` is None when the coarse net does not reach every node of the net
+    (a note says so) or, started by default, when the net cannot be coarsened.
+    """
+    from .start import coarse_net_start  # start.py builds on this module
+
+    t0 = time.perf_counter()
+    q0, coarse = None, None
+    shown = {} if progress is None else {"progress": progress, "callback": coarse_net_progress(progress)}
+    try:
+        q0, coarse = coarse_net_start(net, finding.coarsening, system=system,
+                                      options=replace(options, progress_every=None), **shown)
+    except ModelError:
+        if not by_default:
+            raise
+        # a net that cannot be coarsened starts as a small one would
+    prep = time.perf_counter() - t0
+    if coarse is not None and progress is not None:
+        progress(coarse_net_outcome(coarse, prep))
+    if coarse is not None and q0 is None:
+        notes.append("the coarse net does not reach every node of the net; "
+                     "started from the force-density shape instead")
+    return q0, coarse, prep
+
+
+def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: RelaxationOptions | None = None,
+              finding: FormFindingOptions | None = None, progress: Callable[[str], None] | None = None,
+              callback: Callable[[RelaxationProgress], bool | None] | None = None,
+              v0: np.ndarray | None = None, **fields):
+    """Let the net fall into its hanging shape.
+
+    Parameters
+    ----------
+    net : HangingNet
+    q0 : ndarray, optional
+        Start state (overrides ``finding.start``).
+    options : RelaxationOptions, optional
+        The relaxation's scheme, tolerances and limits
+        (:class:`~shellform.solvers.relaxation.RelaxationOptions`). Its
+        ``max_wall_time`` limits the whole form finding, the coarse nets included.
+    finding : FormFindingOptions, optional
+        Where to start and which ropes to report as overstretched.
     progress : callable, optional
         ``progress(message)`` receives a line per step of the coarse nets'
         relaxations and one when each is at rest (the full net's steps go to
@@ -251,8 +306,10 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
     v0 : ndarray, optional
         Start velocity of the explicit schemes (with ``q0``, to go on along a trajectory).
     **fields
-        Fields of :class:`~shellform.solvers.relaxation.RelaxationOptions`
-        given one by one (``form_find(net, rtol=1e-9)``): they override those of ``options``.
+        Fields of :class:`FormFindingOptions` or
+        :class:`~shellform.solvers.relaxation.RelaxationOptions` given one by
+        one (``form_find(net, start="coarse_net", rtol=1e-9)``): they override those of
+        ``finding`` and ``options``.
 
     Returns
     -------
@@ -263,38 +320,21 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
     MechanismError
         When the net is a mechanism the solver cannot handle.
     """
-    options = RelaxationOptions() if options is None else options
-    if fields:
-        options = replace(options, **fields)
-    _check_strain_limit(strain_limit)
+    options, finding = _split_options(options, finding, fields)
+    _check_strain_limit(finding.strain_limit)
     report = hypostatic_check(net.structure)
     notes = []
     if report.warning:
         warnings.warn(report.warning, HypostaticWarning, stacklevel=2)
         notes.append(report.warning)
+    start = finding.start
     if start not in START_STATES + ("coarse_net",):
         raise ModelError(f"form finding: unknown start {start!r}; expected one of {START_STATES + ('coarse_net',)}")
     prep, coarse = 0.0, None
     system = net.system()
     by_default = start == "auto" and options.scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
     if q0 is None and (start == "coarse_net" or by_default):
-        from .start import coarse_net_start  # start.py builds on this module
-
-        t0 = time.perf_counter()
-        shown = {} if progress is None else {"progress": progress, "callback": coarse_net_progress(progress)}
-        try:
-            q0, coarse = coarse_net_start(net, coarsening, system=system,
-                                          options=replace(options, progress_every=None), **shown)
-        except ModelError:
-            if not by_default:
-                raise
-            # a net that cannot be coarsened starts as a small one would
-        prep = time.perf_counter() - t0
-        if coarse is not None and progress is not None:
-            progress(coarse_net_outcome(coarse, prep))
-        if coarse is not None and q0 is None:
-            notes.append("the coarse net does not reach every node of the net; "
-                         "started from the force-density shape instead")
+        q0, coarse, prep = _coarse_start(net, system, options, finding, by_default, progress, notes)
     if start == "coarse_net":
         start = "auto"
     # the coarse nets' time counts in the wall time and against its limit, even when their start
@@ -302,7 +342,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
     res = relax(system, q0, options=options, start=start, v0=v0, spent_s=prep, callback=callback)
     if coarse is not None and q0 is not None:
         res = replace(res, start="coarse_net")
-    out = evaluate_state(net, system, res, report, notes, strain_limit=strain_limit)
+    out = evaluate_state(net, system, res, report, notes, strain_limit=finding.strain_limit)
     for w in out.warnings[len(notes):]:
         warnings.warn(w, OverstretchWarning, stacklevel=2)
     return out

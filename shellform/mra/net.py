@@ -12,7 +12,7 @@ it is left out of the model and its weight hangs on the two supports.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -133,27 +133,12 @@ def frame_nodes(grid: QuadGrid, frame: dict, k: int = 0) -> tuple[np.ndarray, np
     return nodes, s
 
 
-def hanging_net(
-    grid: QuadGrid,
-    supports: dict | None = None,
-    *,
-    slack=0.0,
-    EA=None,
-    mass_per_length: float = 1.0,
-    node_mass=0.0,
-    gravity=STANDARD_GRAVITY,
-    loads=None,
-    stiffness_ratio: float = 1.0e4,
-) -> HangingNet:
-    """Build the MRA model of a net hanging from its suspension points.
+@dataclass(frozen=True)
+class NetOptions:
+    """The ropes, masses and loads of a hanging net (:func:`hanging_net`).
 
-    Parameters
+    Attributes
     ----------
-    grid : QuadGrid
-        Planform grid; its edges become ropes.
-    supports : dict
-        See :func:`support_nodes`; ``dofs`` (default ``"xyz"``) says which
-        translations of the suspension points are held.
     slack : float, (float, float) or array_like
         Slack coefficient(s): one for all ropes, one per family (``i``, ``j``),
         or one per grid edge (in the order of ``grid.edges``).
@@ -169,7 +154,37 @@ def hanging_net(
     gravity : (3,) array_like
     loads : (n, 3) array_like, optional
         Extra nodal forces [N].
+    stiffness_ratio : float
+        See ``EA``.
     """
+
+    slack: float | tuple | np.ndarray = 0.0
+    EA: float | np.ndarray | None = None
+    mass_per_length: float = 1.0
+    node_mass: float | np.ndarray = 0.0
+    gravity: tuple | np.ndarray = STANDARD_GRAVITY
+    loads: np.ndarray | None = None
+    stiffness_ratio: float = 1.0e4
+
+
+def hanging_net(grid: QuadGrid, supports: dict | None = None, options: NetOptions | None = None,
+                **fields) -> HangingNet:
+    """Build the MRA model of a net hanging from its suspension points.
+
+    Parameters
+    ----------
+    grid : QuadGrid
+        Planform grid; its edges become ropes.
+    supports : dict
+        See :func:`support_nodes`; ``dofs`` (default ``"xyz"``) says which
+        translations of the suspension points are held.
+    options : NetOptions, optional
+        The ropes, masses and loads (defaults: :class:`NetOptions`).
+    **fields
+        Fields of :class:`NetOptions` given one by one
+        (``hanging_net(grid, supports, slack=0.05)``): they override those of ``options``.
+    """
+    o = replace(options or NetOptions(), **fields)
     nodes_sup, lift = support_nodes(grid, supports)
     dofs = (supports or {}).get("dofs", "xyz")
     edges = grid.edges
@@ -177,27 +192,12 @@ def hanging_net(
     order = np.argsort(family, kind="stable")
     edges, family = edges[order], family[order]
     flat_length = np.linalg.norm(grid.nodes[edges[:, 1]] - grid.nodes[edges[:, 0]], axis=1)
-
-    sc = np.asarray(slack, dtype=float)
-    if sc.ndim == 0:
-        sc = np.full(len(edges), float(sc))
-    elif sc.shape == (2,):
-        sc = sc[family]
-    elif sc.shape == (len(grid.edges),):
-        sc = sc[order]
-    else:
-        raise ModelError(f"ropes: slack must be a number, two numbers (per family) or one per rope, got shape {sc.shape}")
-    if not np.all(np.isfinite(sc)) or np.any(sc <= -1.0):
-        raise ModelError("ropes: slack coefficients must be finite and greater than -1")
+    sc = _slack_coefficients(o.slack, family, order)
 
     positions = grid.nodes.copy()
     positions[:, 2] += lift
     s = Structure(positions)
-    point_mass = np.broadcast_to(np.asarray(node_mass, dtype=float), (grid.n_nodes,))
-    if np.any(point_mass < 0) or not np.all(np.isfinite(point_mass)):
-        raise ModelError("masses: node_mass must be finite and non-negative")
-    if mass_per_length < 0:
-        raise ModelError(f"ropes: mass_per_length must be non-negative, got {mass_per_length}")
+    point_mass = _node_masses(o, grid.n_nodes)
     rest = (1.0 + sc) * flat_length
     held = _held_ropes(edges, nodes_sup, dofs)
     if held.all():
@@ -206,36 +206,71 @@ def hanging_net(
     # where the supports are (an arched frame stretches the ropes along it by its rise), not
     # by the net. It is left out of the model, its weight hanging on its two ends, so that
     # the reactions and rope reports are the net's own.
-    point_mass = point_mass + _end_masses(edges[held], 0.5 * mass_per_length * rest[held], grid.n_nodes)
+    point_mass = point_mass + _end_masses(edges[held], 0.5 * o.mass_per_length * rest[held], grid.n_nodes)
     if np.any(point_mass > 0):
         s.add_point_mass(np.arange(grid.n_nodes), point_mass)
-    s.set_gravity(gravity)
-    if loads is not None:
-        s.add_load(np.arange(grid.n_nodes), np.asarray(loads, dtype=float), scaled=False)
-    if EA is None:
-        # the held ropes' mass is in point_mass by now
-        weight = float((point_mass.sum() + mass_per_length * rest[~held].sum()) * np.linalg.norm(gravity))
-        if loads is not None:
-            weight += float(np.linalg.norm(np.asarray(loads, dtype=float), axis=-1).sum())
-        if weight <= 0:
-            raise ModelError("ropes: the net has no weight and no load; give EA explicitly")
-        EA = stiffness_ratio * weight
-    EA = np.asarray(EA, dtype=float)
-    if EA.shape == (len(grid.edges),):
-        EA = EA[order]
-    elif EA.ndim != 0:
-        raise ModelError(f"ropes: EA must be a number or one per grid edge ({len(grid.edges)}), got shape {EA.shape}")
-    EA = np.broadcast_to(EA, (len(edges),))
+    s.set_gravity(o.gravity)
+    if o.loads is not None:
+        s.add_load(np.arange(grid.n_nodes), np.asarray(o.loads, dtype=float), scaled=False)
+    EA = _rope_stiffness(o, point_mass, rest[~held], order)
     net_rope = ~held
     for fam, name in ((0, "ropes_i"), (1, "ropes_j")):
         sel = (family == fam) & net_rope
         if np.any(sel):
-            s.add_ropes(edges[sel], EA=EA[sel], rest_length=rest[sel], mass_per_length=mass_per_length, name=name)
+            s.add_ropes(edges[sel], EA=EA[sel], rest_length=rest[sel], mass_per_length=o.mass_per_length, name=name)
     s.fix(nodes_sup, dofs)
     return HangingNet(grid=grid, structure=s, supports=nodes_sup, rope_edges=edges[net_rope],
                       family=family[net_rope],
                       info={"slack": sc[net_rope], "flat_length": flat_length[net_rope], "held_ropes": edges[held],
                             "support_dofs": dofs})
+
+
+def _slack_coefficients(slack, family: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """One slack coefficient per rope (ropes sorted by family, ``order`` from the grid's edges)."""
+    sc = np.asarray(slack, dtype=float)
+    if sc.ndim == 0:
+        sc = np.full(len(family), float(sc))
+    elif sc.shape == (2,):
+        sc = sc[family]
+    elif sc.shape == (len(order),):
+        sc = sc[order]
+    else:
+        raise ModelError(f"ropes: slack must be a number, two numbers (per family) or one per rope, got shape {sc.shape}")
+    if not np.all(np.isfinite(sc)) or np.any(sc <= -1.0):
+        raise ModelError("ropes: slack coefficients must be finite and greater than -1")
+    return sc
+
+
+def _node_masses(o: NetOptions, n_nodes: int) -> np.ndarray:
+    """The extra point mass of every node, checked along with the ropes' mass per length."""
+    point_mass = np.broadcast_to(np.asarray(o.node_mass, dtype=float), (n_nodes,))
+    if np.any(point_mass < 0) or not np.all(np.isfinite(point_mass)):
+        raise ModelError("masses: node_mass must be finite and non-negative")
+    if o.mass_per_length < 0:
+        raise ModelError(f"ropes: mass_per_length must be non-negative, got {o.mass_per_length}")
+    return point_mass
+
+
+def _rope_stiffness(o: NetOptions, point_mass: np.ndarray, net_rest: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """EA of every rope (sorted by family): as given, or ``stiffness_ratio`` times the net's weight.
+
+    ``point_mass`` holds the held ropes' mass by now; ``net_rest`` are the
+    rest lengths of the ropes left in the model.
+    """
+    EA = o.EA
+    if EA is None:
+        weight = float((point_mass.sum() + o.mass_per_length * net_rest.sum()) * np.linalg.norm(o.gravity))
+        if o.loads is not None:
+            weight += float(np.linalg.norm(np.asarray(o.loads, dtype=float), axis=-1).sum())
+        if weight <= 0:
+            raise ModelError("ropes: the net has no weight and no load; give EA explicitly")
+        EA = o.stiffness_ratio * weight
+    EA = np.asarray(EA, dtype=float)
+    if EA.shape == (len(order),):
+        EA = EA[order]
+    elif EA.ndim != 0:
+        raise ModelError(f"ropes: EA must be a number or one per grid edge ({len(order)}), got shape {EA.shape}")
+    return np.broadcast_to(EA, (len(order),))
 
 
 def _held_ropes(edges: np.ndarray, supports: np.ndarray, dofs: str) -> np.ndarray:

@@ -20,7 +20,7 @@ import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from shellform.io.files import output_folder, safe_name, write_text  # noqa: E402
-from shellform.mra import run_mra_case  # noqa: E402
+from shellform.analyses.form_finding import run_mra_case  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
