@@ -1,0 +1,174 @@
+"""What a sweep costs beyond its cases: the sweep's wall time against the same cases in a plain loop.
+
+The cases are the chain of ``scenes/chain_dynamics.toml`` (implicit Euler time
+stepping, fixed step) with ``--duration`` seconds of motion, about a second of
+work each, swept over ``--cases`` values of the damping. The loop runs every
+case through ``run_case`` (what a sweep worker runs) in this process, after
+one untimed case has imported everything; its per-case wall times summed are
+the work. Each sweep runs the same cases into a fresh folder with
+``workers`` = 1 (in this process) and 2 (a pool of spawned processes, which
+import shellform afresh). The overhead is the sweep's wall time less the
+work shared among the workers, as a share of that:
+
+    overhead = (wall - work / workers) / (work / workers)
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py [--cases 20] [--duration 3.0] [--workers 1 2]
+
+The CPU time (this process and its workers) is printed beside it, with its
+excess over the loop's: it does not count the time a worker waits for a core
+that another program holds, which the wall time does. The machine's load
+average is printed with the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import tomllib
+
+from shellform.sweep import run_case, run_sweep
+from shellform.sweep_cases import expand, parse_param
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def chain_scene(folder: Path, duration: float) -> Path:
+    """The chain scene with ``duration`` seconds of motion, written into ``folder``."""
+    text = (ROOT / "scenes" / "chain_dynamics.toml").read_text()
+    marker = "duration = 3.0"
+    if marker not in text:
+        raise SystemExit(f"scenes/chain_dynamics.toml has no {marker!r} line to set the duration in")
+    path = folder / "chain.toml"
+    path.write_text(text.replace(marker, f"duration = {duration!r}"))
+    return path
+
+
+def cpu_seconds() -> float:
+    """CPU time of this process and of its children that have ended (a pool's workers, once shut down)."""
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+#: run in a fresh interpreter: what a spawned worker pays before its first case is as fast as the loop's
+_FRESH = """
+import sys, time, tomllib
+t0 = time.perf_counter()
+from shellform.sweep import run_case
+t1 = time.perf_counter()
+data = tomllib.loads(open(sys.argv[1]).read())
+walls = []
+for k in range(2):
+    t = time.perf_counter()
+    run_case(data, sys.argv[2] + str(k), sys.argv[3])
+    walls.append(time.perf_counter() - t)
+print(t1 - t0, *walls)
+"""
+
+
+def fresh_process(scene: Path, out: Path) -> tuple[float, float, float]:
+    """Import time, first and second case of a fresh interpreter, as a spawned worker starts."""
+    done = subprocess.run([sys.executable, "-c", _FRESH, str(scene), str(out), str(scene.parent)],
+                          capture_output=True, text=True, check=True)
+    return tuple(float(v) for v in done.stdout.split()[-3:])
+
+
+def plain_loop(cases, folder: Path) -> tuple[float, float, list[float]]:
+    """Wall time, CPU time and per-case wall times of the cases run one after the other in this process."""
+    walls = []
+    c0, t0 = cpu_seconds(), time.perf_counter()
+    for case in cases:
+        t = time.perf_counter()
+        summary = run_case(case.data, str(folder / case.name), case.base_dir)
+        walls.append(time.perf_counter() - t)
+        if summary.get("run_status") != "finished":
+            raise SystemExit(f"{case.name} did not finish: {summary.get('message')}")
+    return time.perf_counter() - t0, cpu_seconds() - c0, walls
+
+
+def load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"{one:.2f} (5 min: {five:.2f})"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=20)
+    parser.add_argument("--duration", type=float, default=3.0, help="seconds of motion per case (sets the work)")
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--save", action="store_true", help="also write benchmarks/results/bench_sweep.md")
+    args = parser.parse_args(argv)
+    damping = ",".join(f"{1.0 + 0.1 * i:.1f}" for i in range(args.cases))
+    param = f"analysis.dynamics.damping={damping}"
+    lines = []
+
+    def say(text: str = "") -> None:
+        lines.append(text)
+        print(text, flush=True)
+
+    with tempfile.TemporaryDirectory(prefix="bench_sweep-") as tmp:
+        tmp = Path(tmp)
+        scene = chain_scene(tmp, args.duration)
+        cases = expand(tomllib.loads(scene.read_text()), [parse_param(param)], str(tmp))
+        run_case(cases[0].data, str(tmp / "warm-up"), str(tmp))  # imports and first-call costs, untimed
+        say(f"{len(cases)} cases: scenes/chain_dynamics.toml, duration {args.duration} s, `{param[:40]}...`; "
+            f"{os.cpu_count()} CPUs")
+        say()
+        say("| run | workers | wall [s] | work / workers [s] | overhead [s] | overhead | CPU [s] | CPU overhead "
+            "| load average before |")
+        say("|---|---:|---:|---:|---:|---:|---:|---:|---|")
+        before = load()
+        loops = [plain_loop(cases, tmp / "loop_before")]
+        loop_wall, loop_cpu, walls = loops[0]
+        say(f"| plain loop | 1 | {loop_wall:.2f} | {sum(walls):.2f} | - | - | {loop_cpu:.2f} | - | {before} |")
+        sweeps = []
+        for workers in args.workers:
+            before = load()
+            c0, t0 = cpu_seconds(), time.perf_counter()
+            rows = run_sweep(scene, [param], tmp / f"sweep_{workers}", workers=workers)
+            wall, cpu = time.perf_counter() - t0, cpu_seconds() - c0
+            bad = [r["case"] for r in rows if r["status"] != "finished"]
+            if bad:
+                raise SystemExit(f"sweep with {workers} workers: cases {bad} did not finish")
+            sweeps.append((workers, wall, cpu, before))
+        before = load()
+        loops.append(plain_loop(cases, tmp / "loop_after"))
+        loop_wall, loop_cpu, walls = loops[1]
+        say(f"| plain loop again | 1 | {loop_wall:.2f} | {sum(walls):.2f} | - | - | {loop_cpu:.2f} | - | {before} |")
+        # the work: the mean of the loops before and after the sweeps, so that a drift of the machine's load
+        # between them is shared out
+        work = sum(sum(w) for _, _, w in loops) / 2
+        loop_cpu = sum(c for _, c, _ in loops) / 2
+        walls = [w for _, _, ws in loops for w in ws]
+        for workers, wall, cpu, before in sweeps:
+            share = work / workers
+            say(f"| sweep | {workers} | {wall:.2f} | {share:.2f} | {wall - share:.2f} | "
+                f"{100 * (wall - share) / share:.1f} % | {cpu:.2f} | {100 * (cpu - loop_cpu) / loop_cpu:.1f} % | "
+                f"{before} |")
+        imports, first, second = fresh_process(scene, tmp / "fresh")
+        say()
+        say(f"work: {work:.2f} s (mean of the two loops) in {len(cases)} cases, {min(walls):.2f} to {max(walls):.2f} s "
+            f"each (mean {2 * work / len(walls):.2f} s); load average after: {load()}")
+        say()
+        say(f"a fresh interpreter (as a spawned worker starts): imports {imports:.2f} s, its first case "
+            f"{first:.2f} s, the same case again {second:.2f} s: {imports + first - second:.2f} s before it "
+            "runs cases as fast as the loop")
+    if args.save:
+        RESULTS.mkdir(exist_ok=True)
+        command = "OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py " + " ".join(argv or sys.argv[1:])
+        (RESULTS / "bench_sweep.md").write_text(f"`{command.strip()}`\n\n" + "\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
