@@ -132,8 +132,8 @@ def _on_dask(cases: list[Case], out: Path, scheduler: str) -> Iterator[tuple[Cas
         raise SceneError("--scheduler", "a Dask scheduler needs Dask: pip install 'shellform[sweep]'") from None
     client = Client(scheduler)
     try:
-        futures = {client.submit(run_case, c.data, str(out / c.name), c.base_dir, pure=False, key=f"sweep-{c.name}-"
-                                 f"{c.fingerprint[:12]}"): c for c in cases}
+        # pure=False: a case writes files, so two sweeps of the same scene are two tasks, never one shared result
+        futures = {client.submit(run_case, c.data, str(out / c.name), c.base_dir, pure=False): c for c in cases}
         for fut in as_completed(futures):
             yield futures[fut], _result(fut)
     finally:
