@@ -91,7 +91,7 @@ def finished_summary(case: Case, folder: Path) -> dict | None:
         summary = json.loads((folder / "summary.json").read_text())
     except (OSError, ValueError):
         return None
-    if record.get("fingerprint") != case.fingerprint or not isinstance(summary, dict):
+    if not isinstance(record, dict) or record.get("fingerprint") != case.fingerprint or not isinstance(summary, dict):
         return None
     return summary if summary.get("run_status") == "finished" else None
 
