@@ -87,6 +87,7 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
             # refused before anything was computed: the folder stays as the last run left it
             if previous is not None:
                 write_bytes(out / "summary.json", previous)
+                log.discard()
             else:
                 record.stop("failed", str(exc))
             raise

@@ -27,12 +27,22 @@ class RunLog:
 
     def __enter__(self) -> RunLog:
         self._fh = open(self.path, "a", encoding="utf-8", buffering=1)
+        self._start = self._fh.tell()
+        self._created = self._start == 0
         self._fh.write(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')}\n")
         return self
 
     def __exit__(self, *exc) -> None:
-        self._fh.close()
-        self._fh = None
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+    def discard(self) -> None:
+        """Take back this run's lines: the log is as the run found it (absent if it was)."""
+        self._fh.truncate(self._start)
+        self.__exit__()
+        if self._created:
+            self.path.unlink(missing_ok=True)
 
     def __call__(self, message: str) -> None:
         if self._fh is not None:
