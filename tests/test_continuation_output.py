@@ -55,7 +55,7 @@ def test_a_step_across_a_critical_point_is_drawn_stable_up_to_it(tmp_path, monke
     res = trace_path(von_mises("load"), "load", initial_increment=1.2 * P_CR, max_steps=12)
     limit = res.events_of("limit")[0]
     seen = {}
-    monkeypatch.setattr(table, "plot_curve", lambda path, x, y, *a, **k: seen.update(x=x, y=y, stable=k["stable"]))
+    monkeypatch.setattr(table, "plot_curve", lambda path, x, y, *a: seen.update(x=x, y=y, stable=a[-1].stable))
     table.plot_path(res, tmp_path / "p.png")
     at = seen["y"].index(limit.load)
     assert seen["stable"][at] and seen["stable"][at - 1]  # solid up to the limit point

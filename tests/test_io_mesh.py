@@ -11,7 +11,7 @@ from shellform.cli import main
 from shellform.errors import ModelError
 from shellform.io.mesh_import import read_mesh, unique_edges
 from shellform.io.shell import face_areas, surface_mesh, write_surface
-from shellform.io.table import plot_curve, read_csv, write_csv
+from shellform.io.table import CurveStyle, plot_curve, read_csv, write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 DOME = ROOT / "meshes" / "lattice_dome.obj"
@@ -142,7 +142,7 @@ def test_table_round_trip_is_exact(tmp_path):
 
 def test_curve_plot_with_branches_and_marks(tmp_path):
     x = np.linspace(0, 1, 20)
-    path = plot_curve(tmp_path / "c.png", x, np.sin(6 * x), "x", "y", "a curve", marks=[(0.26, 1.0, "limit")],
-                      stable=np.cos(6 * x) > 0, branch=(x > 0.5).astype(int))
+    style = CurveStyle(marks=[(0.26, 1.0, "limit")], stable=np.cos(6 * x) > 0, branch=(x > 0.5).astype(int))
+    path = plot_curve(tmp_path / "c.png", x, np.sin(6 * x), "x", "y", "a curve", style)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000
     assert not list(tmp_path.glob(".c-*"))

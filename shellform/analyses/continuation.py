@@ -2,42 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from .. import scene as scenes
 from ..io import write_json, write_mode, write_series
-from ..io.table import plot_path, write_path_csv
+from ..io.table import PathPlot, plot_path, write_path_csv
 from ..model import AXES
 from ..progress import Progress, Status, indented
 from .common import build_scene_model, model_sizes, plot_or_note, series_time, write_final_state
-
-
-@dataclass(frozen=True)
-class PathPlot:
-    """The force-displacement plot of a traced path (see :func:`~shellform.io.table.plot_path`).
-
-    Attributes
-    ----------
-    file : str
-        File name in the output folder (default ``{name}.png``).
-    x : str
-        Abscissa: a path-table column (a monitor or ``displacement``).
-    xlabel, ylabel, title : str, optional
-        Labels (defaults: the column, the control's load, none).
-    event_x : callable, optional
-        ``event_x(event)``: the abscissa of an event when ``x`` is a monitor.
-    """
-
-    file: str = ""
-    x: str = "displacement"
-    xlabel: str | None = None
-    ylabel: str | None = None
-    title: str | None = None
-    event_x: Callable | None = None
 
 
 def path_fraction(point, options: dict) -> float:
@@ -132,9 +107,8 @@ def run_continuation_case(
         default_y = "load factor" if control == "load" else "reaction conjugate to the prescribed displacement"
         plots, notes = [], []
         png = out / (plot.file or f"{name}.png")
-        plot_or_note(png, lambda: plot_path(result, png, x=plot.x, xlabel=plot.xlabel or plot.x,
-                                            ylabel=plot.ylabel or default_y, title=plot.title,
-                                            event_x=plot.event_x), plots, notes)
+        shown = replace(plot, ylabel=plot.ylabel or default_y)
+        plot_or_note(png, lambda: plot_path(result, png, shown), plots, notes)
         summary["files"] = files + plots + summary["files"][1:]
         if notes:
             summary["warnings"] = notes

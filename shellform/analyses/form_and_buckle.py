@@ -71,8 +71,8 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     stages, ``form_finding`` and ``buckling``, starts and ends, so that a
     run killed while buckling leaves a summary that says so.
     """
-    from ..io import write_series
-    from .continuation import PathPlot, run_continuation_case
+    from ..io.table import PathPlot
+    from .continuation import run_continuation_case, write_path_series
     from ..rods.network import build_rod_system
     from ..solvers import solve_static
 
@@ -125,8 +125,7 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
                       ylabel="load factor on self-weight", title="inverted shell under its own weight",
                       event_x=lambda e: e.q[3 * apex + 2] - structure.nodes[apex, 2]),
         **options)
-    write_series(out / "buckling_path.xdmf", system,
-                 [(step, q, path.table["lam"][step]) for step, q in zip(path.state_steps, path.states)])
+    write_path_series(out / "buckling_path.xdmf", system, path, 0.0)
     first = path.events[0] if path.events else None
     summary["buckling"] = {
         "converged": bool(path.success),
@@ -141,7 +140,7 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
         "rest_shape": sec["rest_shape"],
     }
     summary["converged"] = bool(summary["converged"] and path.success)
-    summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf"]
+    summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf", "buckling_path.h5"]
     warnings = list(path_summary.get("warnings", []))
     if first is not None and first.lam < 1.0:
         warnings.append(f"the shell loses stability under {first.lam:.3g} times its own weight, less than the weight "

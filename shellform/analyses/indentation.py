@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 
 from .. import scene as scenes
 from ..io import write_series, write_state
-from ..io.table import plot_curve, write_csv
+from ..io.table import CurveStyle, plot_curve, write_csv
 from ..schema import check_table
-from .common import Progress, plot_or_note, write_final_state
+from ..progress import Progress, Status
+from .common import plot_or_note, series_time, write_final_state
 
 
 def hemisphere_model(scene: dict):
@@ -58,7 +60,8 @@ def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = F
     system = setup.system
 
     def report(x, y, n_negative):
-        progress(f"  dD/R {x: .4f}  force R^2/EI {y: .5g}  negative eigenvalues {n_negative}")
+        progress(Status(f"  dD/R {x: .4f}  force R^2/EI {y: .5g}  negative eigenvalues {n_negative}",
+                        x / ind["max_displacement"]))
 
     res = trace_indentation(setup, dD_max=ind["max_displacement"] * R, increment=ind["increment"],
                             snap_method=ind["snap_method"], max_snaps=ind["max_snaps"], max_steps=ind["max_steps"],
@@ -68,15 +71,18 @@ def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = F
         progress(f"  snap {k + 1} at dD/R = {s.dD_over_R:.4f}: {s.label_before} -> {s.label_after}")
     table = {"dD": res.dD, "dD_over_R": res.x, "force": res.force, "force_normalised": res.y,
              "segment": res.segment, "n_negative": res.n_negative, "label": res.labels}
-    files = [write_csv(out / "indentation.csv", table).name]
+    units = {"dD": "m", "dD_over_R": "-", "force": "N", "force_normalised": "-", "segment": "-", "n_negative": "-"}
+    files = [write_csv(out / "indentation.csv", table, units=units).name]
     notes: list[str] = []
     plot_or_note(out / "indentation.png", lambda: plot_curve(
         out / "indentation.png", res.x, res.y, "apex displacement dD / R", "indentation force -sum(Fz) R^2 / EI",
         scene["title"] or f"hemisphere, mode {ind['mode']}",
-        marks=[(s.dD_over_R, s.force_before, f"snap {k + 1}") for k, s in enumerate(res.snaps)],
-        branch=res.segment, branch_name="segment"), files, notes)
-    write_series(out / "indentation.xdmf", system, [(x, q, 1.0) for x, q in zip(res.x, res.path_states)])
-    files.append("indentation.xdmf")
+        CurveStyle(marks=[(s.dD_over_R, s.force_before, f"snap {k + 1}") for k, s in enumerate(res.snaps)],
+                   branch=res.segment, branch_name="segment")), files, notes)
+    name, times = series_time(("apex displacement dD/R", res.x), ("state", np.arange(len(res.path_states))))
+    write_series(out / "indentation.xdmf", system, [(t, q, 1.0) for t, q in zip(times, res.path_states)],
+                 time_name=name)
+    files += ["indentation.xdmf", "indentation.h5"]
     configurations = []
     # the pre-stressed start, then the states the tracer kept: segment ends, critical points, landings
     states = [(0.0, res.path_states[0])] + sorted(res.states.items()) if res.path_states else []

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import csv
 import textwrap
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -129,25 +130,15 @@ def _save(fig, path: Path) -> Path:
     return save_figure(fig, path, bbox_inches="tight")
 
 
-def plot_curve(
-    path,
-    x,
-    y,
-    xlabel: str,
-    ylabel: str,
-    title: str = "",
-    marks=(),
-    stable=None,
-    branch=None,
-    reference: tuple[np.ndarray, np.ndarray] | None = None,
-    branch_name: str = "branch",
-) -> Path:
-    """Plot a load-displacement curve to PNG.
+@dataclass(frozen=True)
+class CurveStyle:
+    """How a curve's points are drawn and marked (see :func:`plot_curve`).
 
-    Parameters
+    Attributes
     ----------
-    marks : iterable of (x, y, label)
-        Points to mark (limit points, bifurcations, snaps).
+    marks : sequence of (x, y, label)
+        Points to mark (limit points, bifurcations, snaps): numbered on the
+        curve and named in a list beside it.
     stable : array of bool, optional
         Stable points; a segment touching an unstable point is drawn dashed.
     branch : array of int, optional
@@ -159,23 +150,20 @@ def plot_curve(
         What the legend calls a branch ("segment" for the stable stretches of
         an indentation between snaps).
     """
-    path = Path(path)
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    show_stability = stable is not None
-    stable = np.ones(len(x), dtype=bool) if stable is None else np.asarray(stable, dtype=bool)
-    branch = np.zeros(len(x), dtype=int) if branch is None else np.asarray(branch, dtype=int)
-    fig = _figure()
-    ax = fig.add_subplot(1, 1, 1)
-    if reference is not None:
-        ax.plot(reference[0], reference[1], color="0.6", lw=3, alpha=0.6, label="reference", zorder=1)
-    colors = ["C0", "C1", "C2", "C4", "C5"]
-    labelled = set()
-    # one line per run of consecutive segments with the same branch and stability
+
+    marks: Sequence = ()
+    stable: np.ndarray | None = None
+    branch: np.ndarray | None = None
+    reference: tuple[np.ndarray, np.ndarray] | None = None
+    branch_name: str = "branch"
+
+
+def _runs(stable: np.ndarray, branch: np.ndarray):
+    """Runs ``(start, stop, branch, unstable)`` of consecutive segments alike in branch and stability."""
     seg_unstable = ~(stable[:-1] & stable[1:])
     seg_branch = branch[1:]
     joined = branch[1:] == branch[:-1]
-    start = 0
-    n_seg = len(x) - 1
+    start, n_seg = 0, len(stable) - 1
     while start < n_seg:
         if not joined[start]:
             start += 1
@@ -184,17 +172,29 @@ def plot_curve(
         while stop + 1 < n_seg and joined[stop + 1] and seg_unstable[stop + 1] == seg_unstable[start] \
                 and seg_branch[stop + 1] == seg_branch[start]:
             stop += 1
-        b, unstable = int(seg_branch[start]), bool(seg_unstable[start])
-        key = (b, unstable)
+        yield start, stop, int(seg_branch[start]), bool(seg_unstable[start])
+        start = stop + 1
+
+
+def _draw_runs(ax, x, y, style: CurveStyle) -> bool:
+    """Draw the curve run by run; returns whether the legend has entries."""
+    show_stability = style.stable is not None
+    stable = np.ones(len(x), dtype=bool) if style.stable is None else np.asarray(style.stable, dtype=bool)
+    branch = np.zeros(len(x), dtype=int) if style.branch is None else np.asarray(style.branch, dtype=int)
+    colors = ["C0", "C1", "C2", "C4", "C5"]
+    labelled = set()
+    for start, stop, b, unstable in _runs(stable, branch):
         label = None
-        if key not in labelled and (show_stability or branch.max() > 0):
+        if (b, unstable) not in labelled and (show_stability or branch.max() > 0):
             words = ("unstable" if unstable else "stable") if show_stability else ""
-            label = words if branch.max() == 0 else f"{branch_name} {b}" + (f", {words}" if words else "")
-            labelled.add(key)
+            label = words if branch.max() == 0 else f"{style.branch_name} {b}" + (f", {words}" if words else "")
+            labelled.add((b, unstable))
         ax.plot(x[start:stop + 2], y[start:stop + 2], ls="--" if unstable else "-",
                 color=colors[b % len(colors)], lw=1.5, label=label, zorder=2)
-        start = stop + 1
-    ax.plot(x, y, ".", color="k", ms=2.5, zorder=3)
+    return bool(labelled)
+
+
+def _draw_marks(ax, marks) -> None:
     # marks are numbered on the curve and named in a list beside it, so that many never overlap
     for k, (mx, my, label) in enumerate(marks):
         ax.plot([mx], [my], "o", mfc="none", mec="red", ms=8, zorder=4)
@@ -205,16 +205,28 @@ def plot_curve(
             shown.append(f"... {len(marks) - MARKS_LISTED} more (see the events file)")
         ax.text(1.02, 1.0, "\n".join(shown), transform=ax.transAxes, va="top", ha="left", fontsize=7,
                 parse_math=False)
+
+
+def plot_curve(path, x, y, xlabel: str, ylabel: str, title: str = "", style: CurveStyle = CurveStyle()) -> Path:
+    """Plot a load-displacement curve to PNG: stable parts solid, unstable dashed, points marked (``style``)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    fig = _figure()
+    ax = fig.add_subplot(1, 1, 1)
+    if style.reference is not None:
+        ax.plot(style.reference[0], style.reference[1], color="0.6", lw=3, alpha=0.6, label="reference", zorder=1)
+    legend = _draw_runs(ax, x, y, style)
+    ax.plot(x, y, ".", color="k", ms=2.5, zorder=3)
+    _draw_marks(ax, list(style.marks))
     # labels may come from a user too (sweep parameters): shown as typed, like the title
     ax.set_xlabel(_cut(xlabel), parse_math=False)
     ax.set_ylabel(_cut(ylabel), parse_math=False)
     if title:
         plain_title(ax, title, fontsize=9)
     ax.grid(True, alpha=0.3)
-    if labelled or reference is not None:
+    if legend or style.reference is not None:
         ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
-    return _save(fig, path)
+    return _save(fig, Path(path))
 
 
 # -- equilibrium paths ------------------------------------------------------------------
@@ -236,26 +248,41 @@ def write_path_csv(result, path, columns: Sequence[str] | None = None) -> Path:
 read_path_csv = read_csv
 
 
-def plot_path(
-    result,
-    path,
-    x: str = "displacement",
-    y: str = "load",
-    xlabel: str | None = None,
-    ylabel: str | None = None,
-    title: str | None = None,
-    reference: tuple[np.ndarray, np.ndarray] | None = None,
-    event_x=None,
-) -> Path:
+@dataclass(frozen=True)
+class PathPlot:
+    """The force-displacement plot of a traced path (see :func:`plot_path`).
+
+    Attributes
+    ----------
+    file : str
+        File name in the output folder (default ``{name}.png`` of the run).
+    x, y : str
+        Columns of the path table: abscissa (a monitor or ``displacement``) and ordinate.
+    xlabel, ylabel, title : str, optional
+        Labels (defaults: the columns, no title).
+    event_x : callable, optional
+        ``event_x(event)``: the abscissa of an event when ``x`` is a monitor
+        (else events of such a plot are not marked).
+    """
+
+    file: str = ""
+    x: str = "displacement"
+    y: str = "load"
+    xlabel: str | None = None
+    ylabel: str | None = None
+    title: str | None = None
+    event_x: Callable | None = None
+
+
+def plot_path(result, path, plot: PathPlot = PathPlot(), reference: tuple[np.ndarray, np.ndarray] | None = None
+              ) -> Path:
     """Force-displacement plot of a traced path (PNG).
 
     Stable stretches (no negative eigenvalue) are drawn solid, unstable ones
-    dashed, one colour per branch; limit and bifurcation points are marked.
-    ``x`` and ``y`` name columns of the path table; ``reference = (x, y)``
-    adds a curve (an analytic solution) in grey. When ``x`` is a monitor,
-    ``event_x(event)`` gives the abscissa of an event (else events of such a
-    plot are not marked).
+    dashed, one colour per branch; limit and bifurcation points are numbered.
+    ``reference = (x, y)`` adds a curve (an analytic solution) in grey.
     """
+    x, y = plot.x, plot.y
     table = result.table
     xs, ys = list(np.asarray(table[x], dtype=float)), list(np.asarray(table[y], dtype=float))
     stable = list(np.asarray(table["n_negative"]) == 0)
@@ -263,7 +290,7 @@ def plot_path(
     steps = list(np.asarray(table["step"], dtype=int))
     marks = []
     for k, e in enumerate(result.events):
-        ex = event_x(e) if event_x is not None else getattr(e, x, None)
+        ex = plot.event_x(e) if plot.event_x is not None else getattr(e, x, None)
         ey = getattr(e, y, None)
         if ex is None or ey is None:
             continue
@@ -277,5 +304,5 @@ def plot_path(
             stable.insert(at, True)
             branch.insert(at, branch[at])
             steps.insert(at, -1)
-    return plot_curve(path, xs, ys, xlabel or x, ylabel or y, title or "", marks=marks,
-                      stable=np.asarray(stable), branch=np.asarray(branch), reference=reference)
+    style = CurveStyle(marks=marks, stable=np.asarray(stable), branch=np.asarray(branch), reference=reference)
+    return plot_curve(path, xs, ys, plot.xlabel or x, plot.ylabel or y, plot.title or "", style)

@@ -6,7 +6,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..assembly import build_system
-from ..io.table import plot_curve
+from ..io.table import CurveStyle, plot_curve
 from ..model import Structure
 from ..solvers import solve_static
 from .reference import CATENARY_SOURCE, CATENARY_TOLERANCE, VON_MISES_SOURCE
@@ -85,7 +85,6 @@ def case_von_mises(out) -> CaseResult:
     fig = out / "von_mises.png"
     plot_curve(fig, -path["w"], path["lam"], "apex deflection [m]", "apex load [N]",
                "von Mises truss: traced points and analytic curve",
-               marks=[(-(e.q[5] - H), e.load, "limit") for e in limits],
-               stable=path["n_negative"] == 0)
+               CurveStyle(marks=[(-(e.q[5] - H), e.load, "limit") for e in limits], stable=path["n_negative"] == 0))
     res.figures.append(fig.name)
     return res

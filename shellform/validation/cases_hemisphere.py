@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..gridshell.study import PUBLISHED, SOURCE, TOLERANCE, IndentationCase, indentation_case
-from ..io.table import plot_curve
+from ..io.table import CurveStyle, plot_curve
 from .report import CaseResult, Check
 
 #: the paper's rod counts 2n (Sec. 3.2)
@@ -38,7 +38,7 @@ def case_hemisphere(out, ns=PAPER_N, voronoi_length: float = 1.0e-3) -> CaseResu
             x, y = np.asarray(run["curve"]["x"]), np.asarray(run["curve"]["y"])
             snaps = [int(np.argmin(np.abs(x - t))) for t in run["thresholds"]]
             plot_curve(fig, x, y, "dD / R", "-sum(Fz) R^2 / EI", f"mode {mode}, 2n = {2 * n} rods",
-                       marks=[(x[i], y[i], "snap") for i in snaps])
+                       CurveStyle(marks=[(x[i], y[i], "snap") for i in snaps]))
             res.figures.append(fig.name)
         slope, intercept = np.polyfit(ns, forces, 1)
         fit = np.polyval([slope, intercept], ns)
