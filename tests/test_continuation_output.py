@@ -8,7 +8,7 @@ import numpy as np
 from test_continuation_models import H, L, P_CR, truss_load, von_mises
 
 from shellform.io.table import plot_path, read_path_csv, write_path_csv
-from shellform.analyses import run_continuation_case
+from shellform.analyses import PathFiles, run_continuation_case
 from shellform.solvers.continuation import TABLE_COLUMNS, trace_path
 
 
@@ -73,7 +73,7 @@ def test_the_written_buckling_mode_of_a_pinned_column_is_a_half_sine(tmp_path):
 
     L = 1.0
     s, system = euler_column("pinned-pinned", n=40, L=L)
-    res, summary = run_continuation_case(system, tmp_path, "load", plot=None, initial_increment=2.0,
+    res, summary = run_continuation_case(system, tmp_path, "load", PathFiles(plot=None), initial_increment=2.0,
                                          parameter_bounds=(0.0, 1.3 * np.pi**2), max_steps=60)
     first = summary["events"][0]
     assert first["kind"] == "bifurcation" and first["number"] == 1

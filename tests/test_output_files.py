@@ -20,7 +20,7 @@ from shellform.io.checkpoint import save_checkpoint
 from shellform.io.files import LOCK_NAME, OutputError, atomic_target, open_atomic, output_lock, safe_name, write_text
 from shellform.io.mesh import write_mesh
 from shellform.io.table import plot_curve, write_csv
-from shellform.analyses import run_continuation_case, run_scene
+from shellform.analyses import PathFiles, run_continuation_case, run_scene
 from shellform.scene import parse_scene
 
 from test_continuation_models import von_mises
@@ -97,8 +97,8 @@ def test_the_continuation_checkpoint_does_not_write_through_a_planted_symlink(tm
     # the fixed temporary name an earlier version used
     (out / "path_checkpoint.npz.tmp.npz").symlink_to(victim)
     (out / "path_checkpoint.npz").symlink_to(victim)
-    res, _ = run_continuation_case(von_mises("load"), out, "load", plot=None, checkpoint_every=1,
-                                   initial_increment=3.0, max_steps=5, resume=False)
+    res, _ = run_continuation_case(von_mises("load"), out, "load", PathFiles(plot=None, checkpoint_every=1, resume=False),
+                                   initial_increment=3.0, max_steps=5)
     assert victim.read_text() == "keep me"
     assert not (out / "path_checkpoint.npz").is_symlink()
     assert int(json.loads(str(np.load(out / "path_checkpoint.npz")["meta"]))["step"]) == res.steps

@@ -25,14 +25,14 @@ from ..io.summary import RunRecord
 from ..io.units import units_block
 from ..io.log import RunLog
 from ..progress import Progress, quiet, tee
-from .continuation import run_continuation, run_continuation_case
+from .continuation import PathFiles, run_continuation, run_continuation_case
 from .dynamics import run_dynamics
 from .form_and_buckle import run_form_and_buckle
 from .form_finding import run_form_finding
 from .indentation import run_indentation
 from .static import run_static
 
-__all__ = ["ANALYSES", "STAGES", "run_scene", "run_continuation_case"]
+__all__ = ["ANALYSES", "STAGES", "run_scene", "run_continuation_case", "PathFiles"]
 
 ANALYSES = {"static": run_static, "continuation": run_continuation, "dynamics": run_dynamics,
             "mra": run_form_finding, "form_and_buckle": run_form_and_buckle, "indentation": run_indentation}

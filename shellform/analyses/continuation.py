@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,27 +27,37 @@ def path_fraction(point, options: dict) -> float:
     return fraction
 
 
-def run_continuation_case(
-    system,
-    out_dir,
-    control: str = "load",
-    *,
-    name: str = "path",
-    progress: Progress | None = None,
-    resume: bool = True,
-    checkpoint_every: int = 10,
-    plot: PathPlot | None = PathPlot(),
-    callback=None,
-    **options,
-):
+@dataclass(frozen=True)
+class PathFiles:
+    """What :func:`run_continuation_case` writes and keeps.
+
+    Attributes
+    ----------
+    name : str
+        Stem of the file names.
+    plot : PathPlot, optional
+        The plot's file, abscissa and labels; None draws none.
+    checkpoint_every : int
+        Steps between checkpoints.
+    resume : bool
+        Continue from an existing checkpoint.
+    """
+
+    name: str = "path"
+    plot: PathPlot | None = PathPlot()
+    checkpoint_every: int = 10
+    resume: bool = True
+
+
+def run_continuation_case(system, out_dir, control: str = "load", files: PathFiles = PathFiles(), *,
+                          progress: Progress | None = None, callback=None, **options):
     """Trace a path and write its files to ``out_dir``.
 
-    Writes ``{name}.csv`` (path table), the force-displacement plot
-    (``plot``; None: no plot), for every critical point ``{name}_critical_{k}.vtu``
-    (the state there, its buckling mode as point data ``mode``), ``{name}_events.json``
-    (outcome and events) and keeps ``{name}_checkpoint.npz``: started again
-    with the same arguments, an interrupted run resumes from its last
-    checkpoint.
+    Writes ``{name}.csv`` (path table), the force-displacement plot, for
+    every critical point ``{name}_critical_{k}.vtu`` (the state there, its
+    buckling mode as point data ``mode``), ``{name}_events.json`` (outcome
+    and events) and keeps ``{name}_checkpoint.npz``: started again with the
+    same arguments, an interrupted run resumes from its last checkpoint.
 
     Parameters
     ----------
@@ -55,16 +65,10 @@ def run_continuation_case(
     out_dir : path-like
         Created if missing.
     control : {"load", "displacement"}
-    name : str
-        Stem of the file names.
+    files : PathFiles
+        File names, plot and checkpointing.
     progress : callable, optional
-        Receives one line of text per converged point.
-    resume : bool
-        Continue from an existing checkpoint.
-    checkpoint_every : int
-        Steps between checkpoints.
-    plot : PathPlot, optional
-        The plot's file, abscissa and labels; None draws none.
+        Receives a status per converged point and the outcome.
     callback : callable, optional
         Also called with each :class:`~shellform.solvers.continuation.PathPoint`;
         returning True stops the run.
@@ -82,7 +86,7 @@ def run_continuation_case(
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ck = out / f"{name}_checkpoint.npz"
+    ck = out / f"{files.name}_checkpoint.npz"
 
     def on_point(pt):
         if progress is not None:
@@ -92,33 +96,44 @@ def run_continuation_case(
                 f"iterations {pt.iterations}", path_fraction(pt, options)))
         return callback(pt) if callback is not None else None
 
-    result = trace_path(system, control, callback=on_point, checkpoint=Checkpoint(ck, checkpoint_every, resume),
-                        **options)
-    files = [write_path_csv(result, out / f"{name}.csv").name]
-    summary = result.summary()
-    modes = []
-    for number, (event, record) in enumerate(zip(result.events, summary["events"]), start=1):
-        modes.append(write_mode(out / f"{name}_critical_{number}.vtu", system, event.q, event.mode, event.lam).name)
-        record.update(number=number, file=modes[-1])
-    summary["files"] = files + modes + [f"{name}_events.json", ck.name]
-    # the outcome is on disk before the plot is drawn
-    write_json(out / f"{name}_events.json", summary)
-    if plot is not None:
-        default_y = "load factor" if control == "load" else "reaction conjugate to the prescribed displacement"
-        plots, notes = [], []
-        png = out / (plot.file or f"{name}.png")
-        shown = replace(plot, ylabel=plot.ylabel or default_y)
-        plot_or_note(png, lambda: plot_path(result, png, shown), plots, notes)
-        summary["files"] = files + plots + summary["files"][1:]
-        if notes:
-            summary["warnings"] = notes
-            for note in notes:
-                if progress is not None:
-                    progress(note)
-        write_json(out / f"{name}_events.json", summary)
+    result = trace_path(system, control, callback=on_point,
+                        checkpoint=Checkpoint(ck, files.checkpoint_every, files.resume), **options)
+    summary = write_path_files(result, system, out, files, progress)
     if progress is not None:
         progress(f"{result.message} ({result.steps} steps, {len(result.events)} events)")
     return result, summary
+
+
+def write_path_files(result, system, out: Path, files: PathFiles, progress: Progress | None = None) -> dict:
+    """The table, the critical points' states and modes, the events file and the plot of a traced path.
+
+    Returns the summary written to ``{name}_events.json``, with the file names.
+    """
+    name = files.name
+    written = [write_path_csv(result, out / f"{name}.csv").name]
+    summary = result.summary()
+    for number, (event, record) in enumerate(zip(result.events, summary["events"]), start=1):
+        written.append(write_mode(out / f"{name}_critical_{number}.vtu", system, event.q, event.mode,
+                                  event.lam).name)
+        record.update(number=number, file=written[-1])
+    summary["files"] = written + [f"{name}_events.json", f"{name}_checkpoint.npz"]
+    # the outcome is on disk before the plot is drawn
+    write_json(out / f"{name}_events.json", summary)
+    if files.plot is None:
+        return summary
+    default_y = "load factor" if result.control == "load" else "reaction conjugate to the prescribed displacement"
+    plots, notes = [], []
+    png = out / (files.plot.file or f"{name}.png")
+    shown = replace(files.plot, ylabel=files.plot.ylabel or default_y)
+    plot_or_note(png, lambda: plot_path(result, png, shown), plots, notes)
+    summary["files"] = written[:1] + plots + summary["files"][1:]
+    if notes:
+        summary["warnings"] = notes
+        for note in notes:
+            if progress is not None:
+                progress(note)
+    write_json(out / f"{name}_events.json", summary)
+    return summary
 
 
 def write_path_series(path: Path, system, result, load_factor: float) -> str:
@@ -164,15 +179,13 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
         f"continuation ({control} control): {structure.n_nodes} nodes, {system.n_free} free DOFs, "
         f"effects: {', '.join(e.name for e in system.effects)}"
     )
+    plot = PathPlot("load_displacement.png", x=monitor or "displacement",
+                    xlabel=f"displacement {monitor or ''} [m]".replace("  ", " "),
+                    ylabel="load factor" if control == "load" else "reaction conjugate to the prescribed motion [N]",
+                    title=scene["title"], event_x=event_x)
     res, path_summary = run_continuation_case(
-        system, out, control, name="path", progress=indented(progress), resume=resume,
-        checkpoint_every=c["checkpoint_every"],
-        plot=PathPlot("load_displacement.png", x=monitor or "displacement",
-                      xlabel=f"displacement {monitor or ''} [m]".replace("  ", " "),
-                      ylabel="load factor" if control == "load" else "reaction conjugate to the prescribed motion [N]",
-                      title=scene["title"], event_x=event_x),
-        **options,
-    )
+        system, out, control, PathFiles("path", plot, c["checkpoint_every"], resume), progress=indented(progress),
+        **options)
     for e in res.events:
         progress(f"  {e.kind} point at parameter {e.parameter:.6g}, load {e.load:.6g} (step {e.step})")
     lam_of = dict(zip(res.table["step"], res.table["lam"]))

@@ -72,7 +72,7 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     run killed while buckling leaves a summary that says so.
     """
     from ..io.table import PathPlot
-    from .continuation import run_continuation_case, write_path_series
+    from .continuation import PathFiles, run_continuation_case, write_path_series
     from ..rods.network import build_rod_system
     from ..solvers import solve_static
 
@@ -118,12 +118,11 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
                    monitors={"apex_w": 3 * apex + 2}, q0=q_start)
     if b["initial_increment"] is not None:
         options["initial_increment"] = b["initial_increment"]
+    plot = PathPlot("buckling_curve.png", x="apex_w", xlabel="apex z-displacement [m]",
+                    ylabel="load factor on self-weight", title="inverted shell under its own weight",
+                    event_x=lambda e: e.q[3 * apex + 2] - structure.nodes[apex, 2])
     path, path_summary = run_continuation_case(
-        system, out, "load", name="buckling_path", progress=say, resume=resume,
-        checkpoint_every=b["checkpoint_every"],
-        plot=PathPlot("buckling_curve.png", x="apex_w", xlabel="apex z-displacement [m]",
-                      ylabel="load factor on self-weight", title="inverted shell under its own weight",
-                      event_x=lambda e: e.q[3 * apex + 2] - structure.nodes[apex, 2]),
+        system, out, "load", PathFiles("buckling_path", plot, b["checkpoint_every"], resume), progress=say,
         **options)
     write_path_series(out / "buckling_path.xdmf", system, path, 0.0)
     first = path.events[0] if path.events else None
