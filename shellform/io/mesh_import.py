@@ -130,6 +130,13 @@ def read_mesh(path) -> ImportedMesh:
         names the file and what is wrong.
     """
     path = Path(path)
+    mesh = _read_file(path)
+    points = _checked_points(mesh, path)
+    cells = _member_cells(mesh, len(points), path)
+    return ImportedMesh(points, cells, _named_sets(mesh, len(points), path), str(path))
+
+
+def _read_file(path: Path) -> meshio.Mesh:
     try:
         info = path.stat()
     except (OSError, ValueError):
@@ -143,11 +150,15 @@ def read_mesh(path) -> ImportedMesh:
                          "read")
     what = f"{ext[1:].upper()} ({', '.join(formats)})" if len(formats) > 1 else formats[0]
     try:
-        mesh = meshio.read(path)
+        return meshio.read(path)
     except (Exception, SystemExit):  # meshio raises many types, and exits, on unreadable files
         # its messages may quote the file (a line of it): name the format only
         raise ModelError(f"cannot read mesh file {_shown(path)} as {what}: the file is not a valid {what} "
                          "mesh") from None
+
+
+def _checked_points(mesh: meshio.Mesh, path: Path) -> np.ndarray:
+    """The mesh's points as finite (n, 3) coordinates in range."""
     try:
         points = np.asarray(mesh.points, dtype=float)
     except (TypeError, ValueError):
@@ -166,6 +177,11 @@ def read_mesh(path) -> ImportedMesh:
         k = int(far[0])
         raise ModelError(f"mesh file {_shown(path)}: point {k} has a coordinate of magnitude "
                          f"{np.abs(points[k]).max():.3g}; at most {MAX_COORDINATE:.0e} m is allowed")
+    return points
+
+
+def _member_cells(mesh: meshio.Mesh, n_points: int, path: Path) -> dict[str, np.ndarray]:
+    """Corner nodes of the line, triangle and quad cells by family; any other cell type is refused."""
     cells: dict[str, list] = {}
     other = set()
     for block in mesh.cells:
@@ -178,11 +194,11 @@ def read_mesh(path) -> ImportedMesh:
         if data.ndim != 2 or data.shape[1] < CORNERS[block.type] or not np.issubdtype(data.dtype, np.integer):
             raise ModelError(f"mesh file {_shown(path)}: its {block.type} cells are not rows of point numbers")
         data = data[:, : CORNERS[block.type]].astype(np.int64)
-        bad = np.argwhere((data < 0) | (data >= len(points)))
+        bad = np.argwhere((data < 0) | (data >= n_points))
         if bad.size:
             k, c = (int(v) for v in bad[0])
             raise ModelError(f"mesh file {_shown(path)}: {block.type} cell {k} refers to point {int(data[k, c])}; "
-                             f"the file has {len(points)} points (0..{len(points) - 1})")
+                             f"the file has {n_points} points (0..{n_points - 1})")
         cells.setdefault(family, []).append(data)
     if not cells:
         held = ", ".join(sorted(other)) or "no cells"
@@ -190,6 +206,11 @@ def read_mesh(path) -> ImportedMesh:
     if other:
         raise ModelError(f"mesh file {_shown(path)}: cells of type {', '.join(sorted(other))} cannot be members; "
                          "use a mesh of lines, triangles or quads")
+    return {f: np.concatenate(v) for f, v in cells.items()}
+
+
+def _named_sets(mesh: meshio.Mesh, n_points: int, path: Path) -> dict[str, np.ndarray]:
+    """The mesh's point sets and the nodes of its cell sets, by name."""
     sets = {}
     try:
         for name, ids in (mesh.point_sets or {}).items():
@@ -205,7 +226,7 @@ def read_mesh(path) -> ImportedMesh:
         raise ModelError(f"mesh file {_shown(path)}: its named sets refer to cells or points it does not "
                          "have") from None
     for name, ids in sets.items():
-        if ids.size and (ids[0] < 0 or ids[-1] >= len(points)):
+        if ids.size and (ids[0] < 0 or ids[-1] >= n_points):
             raise ModelError(f"mesh file {_shown(path)}: the named set {name[:60]!r} refers to point "
-                             f"{int(ids[0] if ids[0] < 0 else ids[-1])}; the file has {len(points)} points")
-    return ImportedMesh(points, {f: np.concatenate(v) for f, v in cells.items()}, sets, str(path))
+                             f"{int(ids[0] if ids[0] < 0 else ids[-1])}; the file has {n_points} points")
+    return sets
