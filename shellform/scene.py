@@ -27,7 +27,7 @@ and a single ``[supports]`` table as one ``[[supports]]`` entry.
 :class:`~shellform.model.Structure` with its imperfection and a
 :class:`~shellform.assembly.System` holding exactly the effects the scene
 lists; ``mra_params`` gives the parameters of a form-finding scene for
-:func:`shellform.mra.run_mra_case`.
+:func:`shellform.analyses.form_finding.run_mra_case`.
 
 This module is the entry point; the parts live in modules of their own:
 reading the file (``scene_files``), the older layout (``scene_legacy``),

@@ -1,4 +1,4 @@
-"""The parameters of a form-finding scene for :func:`shellform.mra.run_mra_case`."""
+"""The parameters of a form-finding scene for :func:`shellform.analyses.form_finding.run_mra_case`."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def _plain(v):
 
 
 def mra_params(scene: dict) -> dict:
-    """The parameters of :func:`shellform.mra.run_mra_case` for a validated form-finding scene."""
+    """The parameters of :func:`shellform.analyses.form_finding.run_mra_case` for a validated form-finding scene."""
     g = scene["geometry"]
     geometry = {"type": g["type"], **{k: _plain(g[k]) for k in _GEOMETRY_KEYS[g["type"]] if g[k] is not None}}
     supports = {"dofs": scene["supports"][0]["dofs"]}

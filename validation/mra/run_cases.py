@@ -1,6 +1,6 @@
 """Run the MRA scenes of this folder and tabulate their summaries.
 
-Each ``*.toml`` here is one case for :func:`shellform.mra.run_mra_case`; results go to
+Each ``*.toml`` here is one case for :func:`shellform.analyses.form_finding.run_mra_case`; results go to
 ``results/<name>/`` (``hanging.vtu``, ``inverted.vtu``, ``summary.json``) and the table of
 all cases to ``results/cases.md`` (cases not named on the command line from their last
 ``summary.json``).
