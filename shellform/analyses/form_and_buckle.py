@@ -66,21 +66,16 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     The rod section is ``[rods]`` (``E``, ``G``, ``radius``, ``density``,
     ``rest_shape``), the continuation bounds ``[analysis.buckling]``. Writes
     the form-finding files and ``buckling_path.csv``, ``buckling_path.xdmf``,
-    ``buckling_curve.png``, ``buckling_path_events.json`` and the path's
-    checkpoint. ``record`` (the run's summary) is told when each of the two
-    stages, ``form_finding`` and ``buckling``, starts and ends, so that a
-    run killed while buckling leaves a summary that says so.
+    ``buckling_curve.png``, ``buckling_path_events.json``, the critical
+    points' states and modes and the path's checkpoint. ``record`` (the run's
+    summary) is told when each of the two stages, ``form_finding`` and
+    ``buckling``, starts and ends, so that a run killed while buckling leaves
+    a summary that says so.
     """
-    from ..io.table import PathPlot
-    from .continuation import PathFiles, run_continuation_case, write_path_series
-    from ..rods.network import build_rod_system
-    from ..solvers import solve_static
-
     say = progress or (lambda msg: None)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    b = scene["analysis"]["buckling"]
 
     def stage(method, *args, **kwargs):
         if record is not None:
@@ -97,20 +92,39 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
         # buckling of a form that was not found would answer another question: not run
         return summary
     stage("start", "buckling", body=summary)
+    summary, success, message = _buckle(scene, out, form, summary, resume, say)
+    summary["wall_time_s"] = time.perf_counter() - t0
+    stage("finish", "buckling", success, message, body=summary)
+    return summary
+
+
+def _erected(system, say) -> tuple[np.ndarray | None, str | None]:
+    """Laths bent into the found shape: the state after the bending prestress settles, unloaded."""
+    from ..solvers import solve_static
+
+    erected = solve_static(system, lam=0.0)
+    say(f"erection (prestress relaxed, no load): {erected.message}")
+    if not erected.success:
+        return None, f"erection failed: {erected.message}"
+    system.accept(erected.q)
+    return erected.q, None
+
+
+def _buckle(scene: dict, out: Path, form, summary: dict, resume: bool, say) -> tuple[dict, bool, str]:
+    """The buckling stage: the rod gridshell of ``form`` under its own weight, traced to its first critical point."""
+    from ..io.table import PathPlot
+    from ..rods.network import build_rod_system
+    from .continuation import PathFiles, run_continuation_case, write_path_series
+
+    b = scene["analysis"]["buckling"]
     sec = _section(scene)
     structure, network = dome_rods(form, sec["section"], sec["rest"])
     system = build_rod_system(network, gravity_scaled=True)
     q_start = None
     if sec["rest_shape"] == "straight":
-        # laths bent into the found shape: let the bending prestress settle, unloaded
-        erected = solve_static(system, lam=0.0)
-        say(f"erection (prestress relaxed, no load): {erected.message}")
-        if not erected.success:
-            summary = {**summary, "converged": False, "message": f"erection failed: {erected.message}"}
-            stage("finish", "buckling", False, summary["message"], body=summary)
-            return summary
-        q_start = erected.q
-        system.accept(q_start)
+        q_start, failure = _erected(system, say)
+        if failure is not None:
+            return {**summary, "converged": False, "message": failure}, False, failure
     apex = int(np.argmax(structure.nodes[:, 2]))
     say(f"buckling of the inverted shell: {len(network.rods)} rods, {system.n_free} free DOFs; "
         f"self-weight scaled by the load factor up to {b['load_factor_max']}")
@@ -140,17 +154,21 @@ def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, 
     }
     summary["converged"] = bool(summary["converged"] and path.success)
     summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf", "buckling_path.h5"]
-    warnings = list(path_summary.get("warnings", []))
-    if first is not None and first.lam < 1.0:
-        warnings.append(f"the shell loses stability under {first.lam:.3g} times its own weight, less than the weight "
-                        f"it was found for ({first.kind} point at load factor {first.lam:.4g} < 1)")
-    elif first is None and path.success:
-        warnings.append(f"no critical point up to load factor {float(np.max(path['lam'])):.4g}: the buckling load "
-                        "lies beyond the traced range (raise analysis.buckling.load_factor_max)")
-    for w in warnings[len(path_summary.get("warnings", [])):]:
+    warnings = _buckling_warnings(path, first)
+    for w in warnings:
         say(f"warning: {w}")
+    warnings = list(path_summary.get("warnings", [])) + warnings
     if warnings:
         summary["warnings"] = summary.get("warnings", []) + warnings
-    summary["wall_time_s"] = time.perf_counter() - t0
-    stage("finish", "buckling", bool(path.success), path.message, body=summary)
-    return summary
+    return summary, bool(path.success), path.message
+
+
+def _buckling_warnings(path, first) -> list[str]:
+    """What a designer must not miss: buckling under less than the found weight, or none found at all."""
+    if first is not None and first.lam < 1.0:
+        return [f"the shell loses stability under {first.lam:.3g} times its own weight, less than the weight "
+                f"it was found for ({first.kind} point at load factor {first.lam:.4g} < 1)"]
+    if first is None and path.success:
+        return [f"no critical point up to load factor {float(np.max(path['lam'])):.4g}: the buckling load "
+                "lies beyond the traced range (raise analysis.buckling.load_factor_max)"]
+    return []
