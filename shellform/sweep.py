@@ -4,11 +4,10 @@
 runs every combination (Cartesian product) as its own scene in ``case_NNN/``
 and gathers one table (``sweep.csv``, ``sweep.json``) and a plot (``sweep.png``).
 
-Where the cases run:
+Where the cases run (:mod:`shellform.runner`, which studies share):
 
 - ``workers=1``: one after the other in this process;
-- ``workers=N``: on a pool of N processes started afresh (``spawn``: no
-  state, lock or thread of this process is copied into a worker);
+- ``workers=N``: on a pool of N processes started afresh (``spawn``);
 - ``scheduler=ADDRESS``: on a Dask cluster (the optional extra
   ``pip install shellform[sweep]``; Dask is imported only then).
 
@@ -24,12 +23,12 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import SceneError
 from .io.files import output_folder, output_lock
+from .runner import Runner
 from .sweep_cases import Case, expand, parse_param, parse_path, set_value
 from .sweep_table import SweepTable, scalars
 
@@ -48,7 +47,7 @@ Progress = Callable[[str], None]
 
 @dataclass
 class SweepOptions:
-    """Where and how the cases of a sweep run."""
+    """Where and how the cases of a sweep run (``workers``, ``scheduler``: see :class:`~shellform.runner.Runner`)."""
 
     #: local processes; 1 runs the cases in this process, one after the other
     workers: int = 2
@@ -60,9 +59,7 @@ class SweepOptions:
     plot_y: str | None = None
 
     def __post_init__(self):
-        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
-            raise SceneError("--workers", f"the number of worker processes must be a whole number >= 1, "
-                                          f"got {self.workers!r}")
+        self.runner = Runner(self.workers, self.scheduler)  # checks the workers
 
 
 def run_case(data: dict, out_dir: str, base_dir: str) -> dict:
@@ -101,52 +98,6 @@ def _mark(case: Case, folder: Path) -> None:
 
     values = {k: v if isinstance(v, (bool, int, float, str)) else str(v) for k, v in case.assignment.items()}
     write_json(folder / CASE_FILE, {"case": case.name, "assignment": values, "fingerprint": case.fingerprint})
-
-
-# -- where the cases run: each yields (case, summary) as the cases finish ------------
-
-
-def _in_process(cases: list[Case], out: Path) -> Iterator[tuple[Case, dict]]:
-    for case in cases:
-        yield case, run_case(case.data, str(out / case.name), case.base_dir)
-
-
-def _on_pool(cases: list[Case], out: Path, workers: int) -> Iterator[tuple[Case, dict]]:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    try:
-        futures = {pool.submit(run_case, c.data, str(out / c.name), c.base_dir): c for c in cases}
-        for fut in as_completed(futures):
-            yield futures[fut], _result(fut)
-    finally:
-        # an interrupted sweep does not start the cases still queued
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _on_dask(cases: list[Case], out: Path, scheduler: str) -> Iterator[tuple[Case, dict]]:
-    try:
-        from dask.distributed import Client, as_completed
-    except ImportError:
-        raise SceneError("--scheduler", "a Dask scheduler needs Dask: pip install 'shellform[sweep]'") from None
-    client = Client(scheduler)
-    try:
-        # pure=False: a case writes files, so two sweeps of the same scene are two tasks, never one shared result
-        futures = {client.submit(run_case, c.data, str(out / c.name), c.base_dir, pure=False): c for c in cases}
-        for fut in as_completed(futures):
-            yield futures[fut], _result(fut)
-    finally:
-        client.close()
-
-
-def _result(future) -> dict:
-    """A future's summary; a worker that died (killed, out of memory) makes a failed row."""
-    try:
-        return future.result()
-    except Exception as exc:  # noqa: BLE001 (the other cases go on)
-        return {"run_status": "failed", "converged": False,
-                "message": f"the worker running the case died: {type(exc).__name__}: {exc}"}
 
 
 # -- the sweep ----------------------------------------------------------------------
@@ -207,13 +158,9 @@ def _sweep(cases: list[Case], out: Path, table: SweepTable, opts: SweepOptions, 
         output_folder(folder)
         _mark(case, folder)
         todo.append(case)
-    where = (f"on {opts.scheduler}" if opts.scheduler else
-             "in this process" if opts.workers == 1 or len(todo) == 1 else
-             f"on {min(opts.workers, len(todo))} processes")
-    progress(f"sweep: {len(cases)} cases of {scene_path.name}, {len(todo)} to run {where}")
-    if not todo:
-        return
-    for case, summary in _runner(todo, out, opts):
+    progress(f"sweep: {len(cases)} cases of {scene_path.name}, {len(todo)} to run {opts.runner.where(len(todo))}")
+    tasks = [(case, (case.data, str(out / case.name), case.base_dir)) for case in todo]
+    for case, summary in opts.runner.run(run_case, tasks, _died):
         row = table.add(case, summary)
         wall = row.get("wall_time_s")
         took = f" ({wall:.2f} s)" if isinstance(wall, float) else ""
@@ -221,9 +168,5 @@ def _sweep(cases: list[Case], out: Path, table: SweepTable, opts: SweepOptions, 
         progress(f"  {case.name} {case.assignment}: {row['status']}, converged={row.get('converged')}{took}{why}")
 
 
-def _runner(cases: list[Case], out: Path, opts: SweepOptions) -> Iterable[tuple[Case, dict]]:
-    if opts.scheduler:
-        return _on_dask(cases, out, opts.scheduler)
-    if opts.workers == 1 or len(cases) == 1:
-        return _in_process(cases, out)
-    return _on_pool(cases, out, min(opts.workers, len(cases)))
+def _died(why: str) -> dict:
+    return {"run_status": "failed", "converged": False, "message": f"the worker running the case died: {why}"}
