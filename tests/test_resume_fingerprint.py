@@ -155,7 +155,7 @@ def test_time_stepping_refuses_a_checkpoint_of_another_structure_or_damping(tmp_
 
 
 def test_relaxation_refuses_another_net_naming_the_part(tmp_path):
-    from test_pipeline_analyses import NET
+    from test_analyses import NET
 
     run_scene(parse_scene(copy.deepcopy(NET)), tmp_path)
     other = copy.deepcopy(NET)
