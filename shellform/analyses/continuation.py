@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -152,12 +153,20 @@ def write_path_series(path: Path, system, result, load_factor: float) -> str:
     return name
 
 
-def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
-    model = build_scene_model(scene, progress)
-    structure, system = model.structure, model.system
+def path_options(scene: dict, structure, system) -> tuple[dict, str | None, Callable | None]:
+    """The ``trace_path`` options a scene's ``[analysis.continuation]`` asks for.
+
+    Returns
+    -------
+    options : dict
+        Keyword arguments of :func:`~shellform.solvers.continuation.trace_path`.
+    monitor : str or None
+        The monitor column of ``monitor_node`` (None without one).
+    event_x : callable or None
+        ``event_x(event)``: the monitor's value at an event (the plot's abscissa).
+    """
     a = scene["analysis"]
     c = a["continuation"]
-    control = c["control"]
     options = dict(
         max_steps=c["max_steps"], parameter_bounds=(c["parameter_min"], c["parameter_max"]),
         constraint=c["constraint"], stability=c["stability"], on_bifurcation=c["on_bifurcation"],
@@ -174,6 +183,24 @@ def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = 
         dof = 3 * c["monitor_node"] + AXES[c["monitor_component"]]
         options["monitors"] = {monitor: dof}
         event_x = lambda e: e.q[dof] - system.q_ref[dof]  # noqa: E731 (the plot's abscissa of an event)
+    return options, monitor, event_x
+
+
+def run_continuation(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:
+    return trace_model(scene, build_scene_model(scene, progress), out, progress, resume)
+
+
+def trace_model(scene: dict, model, out: Path, progress: Progress, resume: bool = False, **overrides) -> dict:
+    """Trace the path of a built scene model and write its files; returns the summary.
+
+    ``overrides`` are further ``trace_path`` options (an imperfection study's step control).
+    """
+    structure, system = model.structure, model.system
+    a = scene["analysis"]
+    c = a["continuation"]
+    control = c["control"]
+    options, monitor, event_x = path_options(scene, structure, system)
+    options.update(overrides)
 
     progress(
         f"continuation ({control} control): {structure.n_nodes} nodes, {system.n_free} free DOFs, "
