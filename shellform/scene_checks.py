@@ -33,8 +33,13 @@ def _mesh_of(scene: dict, base_dir):
     path = Path(g["file"])
     if not path.is_absolute():
         path = Path(base_dir or ".") / path
+    rhino = {"layers": g["layers"], "segment_length": g["segment_length"], "tolerance": g["merge_tolerance"]}
+    if path.suffix.lower() != ".3dm":
+        given = next((k for k in ("layers", "segment_length", "merge_tolerance") if g[k] is not None), None)
+        if given is not None:
+            raise SceneError(f"geometry.{given}", "applies to Rhino files (.3dm) only")
     try:
-        return read_mesh(path)
+        return read_mesh(path, rhino)
     except ModelError as exc:
         raise SceneError("geometry.file", str(exc)) from None
 

@@ -45,9 +45,19 @@ GEOMETRY = Table(
         "from a mesh.",
     keys={
         "type": Key("str", "Geometry source.", choices=GEOMETRIES),
-        "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...), relative to the scene file. Line "
-                    "cells become members, and so do the edges of triangle and quad cells (each once).",
+        "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...) or a Rhino file (.3dm), relative to "
+                    "the scene file. Line cells become members, and so do the edges of triangle and quad cells (each "
+                    "once). Of a Rhino file: curves are chains of lines, meshes triangles and quads, points nodes of "
+                    "the named set of their layer; every layer is a named node set (docs/rhino.md).",
                     default=None, only=("file",), required_for=("file",), max_length=1000),
+        "layers": Key("str_list", "Rhino file: read only the objects on these layers (full path 'parent::child' or "
+                      "name; a parent takes its sub-layers). Default all.", default=None, only=("file",)),
+        "segment_length": Key("float", "Rhino file: curves that are not polylines (arcs, NURBS) are divided into "
+                              "equal segments at most this long (default: such curves are refused).", default=None,
+                              unit="m", only=("file",), **_POS),
+        "merge_tolerance": Key("float", "Rhino file: curve ends, mesh vertices and points closer than this are one "
+                               "node (default the file's absolute tolerance).", default=None, unit="m",
+                               only=("file",), **_POS),
         "length_x": Key("float", "Side of the rectangle along x.", default=None, unit="m", only=("rectangle",),
                         required_for=("rectangle",), **_SIZE),
         "length_y": Key("float", "Side of the rectangle along y.", default=None, unit="m", only=("rectangle",),

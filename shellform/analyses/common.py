@@ -62,9 +62,10 @@ def write_final_state(scene: dict, out: Path, system, q, lam: float, formats=Non
             write_series(path, system, [(lam, q, lam)], time_name="load factor")
             files.append(path.with_suffix(".h5").name)
         elif fmt == "3dm":
-            from ..io.rhino import structure_3dm
+            from ..io.rhino import critical_modes, structure_3dm
 
-            structure_3dm(path, system, q)
+            traced = scene["analysis"]["type"] == "continuation"
+            structure_3dm(path, system, q, lam, critical_modes(out) if traced else ())
         else:
             write_state(path, system, q, lam)
         files.append(path.name)

@@ -207,12 +207,18 @@ def export_form(scene: dict, res, inv, out: Path) -> list[str]:
         files.append("inverted_shell.vtu")
     if "3dm" in scene["output"]["formats"]:
         from ..io.rhino import write_3dm
+        from ..mra.lengths import tolerance_classes
 
         x = inv.positions
+        classes = tolerance_classes(res.length, scene["analysis"]["lengths"]["tolerance"])
         write_3dm(out / "form.3dm",
                   lines={"hanging net": (res.positions, net.rope_edges), "inverted net": (x, net.rope_edges)},
                   polylines={"centrelines": [x[c] for c in grid_lines(net.grid)]},
-                  meshes={"inverted shell": (x, net.grid.quads)})
+                  meshes={"inverted shell": (x, net.grid.quads)},
+                  line_text={"hanging net": {"axial_force [N]": res.tension, "slack [-]": res.slack,
+                                             "length [m]": res.length, "length_class [-]": classes},
+                             "inverted net": {"axial_force [N]": inv.force, "length [m]": res.length,
+                                              "length_class [-]": classes}})
         files.append("form.3dm")
     return files
 

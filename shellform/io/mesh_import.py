@@ -117,8 +117,11 @@ def mesh_format(path) -> tuple[str, tuple]:
                      f"expected one of {known}")
 
 
-def read_mesh(path) -> ImportedMesh:
+def read_mesh(path, rhino: dict | None = None) -> ImportedMesh:
     """Read a mesh file: a regular file of a mesh format meshio reads, named by its extension.
+
+    A Rhino file (``.3dm``) is read by :func:`shellform.io.rhino_import.read_3dm`
+    with the keywords ``rhino`` (layers, segment length, merge tolerance).
 
     Raises
     ------
@@ -130,6 +133,10 @@ def read_mesh(path) -> ImportedMesh:
         names the file and what is wrong.
     """
     path = Path(path)
+    if path.suffix.lower() == ".3dm":
+        from .rhino_import import read_3dm
+
+        return read_3dm(path, **(rhino or {}))
     mesh = _read_file(path)
     points = _checked_points(mesh, path)
     cells = _member_cells(mesh, len(points), path)

@@ -29,6 +29,13 @@ def net_mesh(net, positions, member_fields: dict, point_fields: dict | None = No
                        cell_data=cell_data)
 
 
+def _reactions(net, res) -> np.ndarray:
+    """Support reactions at every node [N] (0 at free nodes, as in a state's ``reaction``)."""
+    R = np.zeros((net.structure.n_nodes, 3))
+    R[net.supports] = res.reactions
+    return R
+
+
 def write_net_meshes(out: Path, res, inv, tag: str = "") -> list[str]:
     """``hanging{tag}.vtu`` of a form-finding result and ``inverted{tag}.vtu`` of its inverted shell.
 
@@ -40,7 +47,7 @@ def write_net_meshes(out: Path, res, inv, tag: str = "") -> list[str]:
     hang = net_mesh(net, res.positions,
                     {"tension": res.tension, "slack": res.slack.astype(float), "length": res.length,
                      "rest_length": net.rest_length, "strain": res.strain, "family": net.family.astype(float)},
-                    {"displacement": res.positions - net.structure.nodes})
+                    {"displacement": res.positions - net.structure.nodes, "reaction": _reactions(net, res)})
     names = [f"hanging{tag}.vtu"]
     write_mesh(out / names[0], hang)
     if inv is not None:
