@@ -77,6 +77,21 @@ def _cmd_sweep(args) -> int:
     return 0 if all(r.get("converged", False) for r in rows) else 1
 
 
+def _cmd_study(args) -> int:
+    from .studies import StudyOptions, run_imperfection_study
+
+    progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    options = StudyOptions(workers=args.workers, scheduler=args.scheduler, rerun=args.rerun)
+    try:
+        summary = run_imperfection_study(_scene_path(args.scene), args.out, options, progress)
+    except KeyboardInterrupt:
+        print(f"shellform: interrupted; the finished samples are in {Path(args.out).resolve() / 'study.csv'}, and "
+              "the same command runs the rest", file=sys.stderr)
+        return 130
+    progress(f"table: {Path(args.out).resolve() / 'study.csv'}; figures in study.json")
+    return 0 if summary["failed"] == 0 else 1
+
+
 def _cmd_schema(args) -> int:
     from .schema import reference
     from .scene_format import SCENE
@@ -121,6 +136,20 @@ def main(argv=None) -> int:
                     "buckling.critical_load_factor")
     sw.add_argument("--quiet", action="store_true", help="no progress output")
     sw.set_defaults(func=_cmd_sweep)
+    study = sub.add_parser("study", help="run a study of many imperfect structures of one scene")
+    kinds = study.add_subparsers(dest="kind", required=True)
+    imp = kinds.add_parser("imperfection", help="knock-down curves and fractiles of the critical load factor "
+                           "(the scene's [study] table; see docs/imperfections.md)")
+    imp.add_argument("scene", help="scene: a TOML file or the name of a built-in scene, with a [study] table")
+    imp.add_argument("--out", default="study", help="output directory (default: ./study); a study run again into "
+                     "it keeps the samples that finished")
+    imp.add_argument("--workers", type=int, default=2, help="local processes (default: 2; 1 runs the samples in "
+                     "this process)")
+    imp.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the samples on this Dask scheduler "
+                     "instead (needs the extra shellform[sweep])")
+    imp.add_argument("--rerun", action="store_true", help="run every sample again, also those finished before")
+    imp.add_argument("--quiet", action="store_true", help="no progress output")
+    imp.set_defaults(func=_cmd_study)
     schema = sub.add_parser("schema", help="print the scene reference (Markdown)")
     schema.set_defaults(func=_cmd_schema)
     args = parser.parse_args(argv)
