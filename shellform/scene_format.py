@@ -266,6 +266,52 @@ DYNAMICS = Table(
     },
 )
 
+#: kinds of imperfection shape of a study (shellform.studies.shapes)
+STUDY_SHAPES = ("modes", "mode_combinations", "random_field")
+
+STUDY = Table(
+    discriminator="shapes",
+    doc="An imperfection-sensitivity study (`shellform study imperfection SCENE`; see imperfections.md): the "
+        "scene's load-controlled continuation traced for many imperfect structures, each to the load at which it "
+        "first loses stability. The imperfection moves the stress-free nodes (free DOFs only) by a shape scaled to "
+        "a largest node movement of amplitude x the reference length. `shellform run` ignores this table.",
+    keys={
+        "shapes": Key("str", "modes: each of the lowest buckling modes of the perfect structure (at its first "
+                      "critical point) on its own; mode_combinations: random combinations of them (independent "
+                      "standard normal weights); random_field: Gaussian random fields over the nodes.",
+                      default="modes", choices=STUDY_SHAPES),
+        "modes": Key("int", "How many of the lowest buckling modes (modes, mode_combinations).", default=3,
+                     minimum=1, maximum=100, only=("modes", "mode_combinations")),
+        "amplitudes": Key("float_or_list", "Imperfection amplitudes, as multiples of the reference length "
+                          "(relative_to); instead of amplitude_min/max/count.", default=None),
+        "amplitude_min": Key("float", "Smallest amplitude of a range (with amplitude_max, amplitude_count).",
+                             default=None, **_POS),
+        "amplitude_max": Key("float", "Largest amplitude of a range.", default=None, **_POS),
+        "amplitude_count": Key("int", "Amplitudes in the range.", default=5, minimum=1, maximum=1000),
+        "amplitude_spacing": Key("str", "Spacing of the range.", default="log", choices=("log", "linear")),
+        "relative_to": Key("str", "Reference length of the amplitudes: span (the largest distance between two "
+                           "nodes in plan), member_length (the mean rest length of the members) or absolute "
+                           "(amplitudes in m).", default="span", choices=("span", "member_length", "absolute")),
+        "signs": Key("str", "modes: the sign of each mode (a mode's largest component is positive).",
+                     default="both", choices=("both", "positive", "negative"), only=("modes",)),
+        "samples": Key("int", "Random shapes per amplitude (mode_combinations, random_field).", default=100,
+                       minimum=1, maximum=100_000, only=("mode_combinations", "random_field")),
+        "seed": Key("int", "Seed of the random shapes.", default=0, minimum=0,
+                    only=("mode_combinations", "random_field")),
+        "correlation_length": Key("float", "random_field: correlation length of the squared-exponential "
+                                  "covariance exp(-d^2 / (2 l^2)) between nodes a distance d apart.", default=None,
+                                  unit="m", only=("random_field",), required_for=("random_field",), **_POS),
+        "fractile": Key("float", "Fractile of the critical load factor reported for random shapes.", default=0.05,
+                        minimum=0.0, exclusive_minimum=True, maximum=0.5),
+        "confidence": Key("float", "Confidence level of the fractile's distribution-free interval.", default=0.95,
+                          minimum=0.5, maximum=0.9999),
+        "max_step_angle": Key("float", "Largest angle between a continuation step's prediction and its converged "
+                              "point (degrees): small values keep a path with a sharp limit point (a small "
+                              "imperfection) on its branch.", default=1.0, minimum=0.01, maximum=45.0),
+    },
+)
+
+
 SCENE = Table(
     doc="A scene file.",
     keys={
@@ -386,6 +432,7 @@ SCENE = Table(
                                    "the tangent at the start state).", default=None, only=("mode",)),
             },
         ),
+        "study": STUDY,
         "effects": Table(
             doc="The physical effects to simulate; nothing else is evaluated (bar and rope structures).",
             keys={
