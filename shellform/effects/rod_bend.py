@@ -1,23 +1,29 @@
-"""Bending of discrete elastic rods (Eq. 1b of the gridshell paper).
+"""Bending of discrete elastic rods (Eq. 1b of the gridshell paper), isotropic or not.
 
 At every interior node ``i`` with rest Voronoi length ``dl_i`` and the material
 curvature of each of its two edges ``omega_i^j = (kb_i . m2^j, -kb_i . m1^j)``
 (integrated, dimensionless; ``kb`` the curvature binormal),
 
-    E_b = sum_i EI_i / (4 dl_i) sum_{j in {i-1, i}} |omega_i^j - omega_bar_i^j|^2,
+    E_b = sum_i 1 / (4 dl_i) sum_{j in {i-1, i}} sum_k EI_k (omega_k^j - omega_bar_k^j)^2,
 
-i.e. ``1/2 EI (kappa - kappa_bar)^2 dl`` with the curvature per unit length
-``kappa = omega / dl``, averaged over the frames of the two edges (Bergou et
-al. 2008). For an isotropic section ``|omega^j| = |kb|``, so
+``EI_1`` the stiffness of ``omega_1`` (the rod turning towards ``m1``), ``EI_2``
+that of ``omega_2``: ``1/2 EI (kappa - kappa_bar)^2 dl`` per component with the
+curvature per unit length ``kappa = omega / dl``, averaged over the frames of
+the two edges (Bergou et al. 2008). With the mean ``a = (EI_1 + EI_2) / 2``
+and half the difference ``d = (EI_1 - EI_2) / 2``, and ``|omega^j| = |kb|``,
 
-    E_b = EI / (2 dl) (|kb|^2 - kb . (W^{i-1} + W^i) + const),
-    W^j = omega_bar_1^j m2^j - omega_bar_2^j m1^j,
+    E_b = a / (2 dl) (|kb|^2 - kb . (W^{i-1} + W^i) + const)
+          + d / (4 dl) sum_j ((omega_1^j)^2 - (omega_2^j)^2),
+    W^j = (EI_1 / a) omega_bar_1^j m2^j - (EI_2 / a) omega_bar_2^j m1^j.
 
-and a rod that is straight when unstressed has a bending energy independent of
-its material frames: bending and twist are coupled only through the natural
-curvature and the reference twist. The gradient and Hessian are exact,
-including the dependence of the time-parallel reference frames on the
-positions (:mod:`shellform.rods.hinge`).
+An isotropic rod (``d = 0``) that is straight when unstressed has a bending
+energy independent of its material frames: bending and twist are coupled only
+through the natural curvature and the reference twist. An anisotropic hinge
+sees its material frames whatever its natural curvature. The gradient and
+Hessian are exact, including the dependence of the time-parallel reference
+frames on the positions (:mod:`shellform.rods.hinge`); each material
+curvature and its derivatives come from
+:func:`~shellform.rods.hinge.material_curvature_term`.
 """
 
 from __future__ import annotations
@@ -34,32 +40,57 @@ from ..rods.hinge import (
 )
 from ..rods.kinematics import curvature_binormal, dot, material_curvatures, material_frames
 from .base import LineResults
-from .rod_output import edge_means
+from .rod_output import EdgeSections, edge_means
+
+#: unit natural curvatures that make ``omega_bar . omega`` the material curvature ``omega_1`` or ``omega_2``
+_COMPONENT = (np.array([1.0, 0.0]), np.array([0.0, 1.0]))
 
 
 class RodBending(HingeEffect):
-    """Isotropic bending with natural curvature, all hinges of all rods at once.
+    """Bending with natural curvature, isotropic or anisotropic, all hinges of all rods at once.
 
     Parameters
     ----------
     n_dof, frames, stencil, voronoi
         As for :class:`~shellform.rods.hinge.HingeEffect`.
     EI : ndarray (h,)
-        Bending stiffness [N m^2].
+        Bending stiffness [N m^2] of the material curvature ``omega_1``.
     natural_curvature : ndarray (h, 2, 2)
         Integrated natural material curvature ``omega_bar`` in the frame of
         the edge before (``[:, 0]``) and after (``[:, 1]``) each hinge.
+    EI2 : ndarray (h,), optional
+        Stiffness of ``omega_2``; default ``EI`` (isotropic).
+    sections : EdgeSections, optional
+        Section shapes of the rod edges: the line results then include the
+        extreme-fibre stress ``max_stress``.
     """
 
     name = "rod_bend"
 
-    def __init__(self, n_dof, frames, stencil, voronoi, EI, natural_curvature):
-        super().__init__(n_dof, frames, stencil, voronoi, EI)
-        self.EI = np.asarray(EI, dtype=float)
+    def __init__(self, n_dof, frames, stencil, voronoi, EI, natural_curvature, EI2=None,
+                 sections: EdgeSections | None = None):
+        EI = np.asarray(EI, dtype=float)
+        EI2 = EI if EI2 is None else np.asarray(EI2, dtype=float)
+        # the isotropic part is carried by the mean stiffness (EI itself where EI2 == EI, bit for bit)
+        self.aniso = np.flatnonzero(EI != EI2)
+        mean = EI.copy()
+        mean[self.aniso] = 0.5 * (EI[self.aniso] + EI2[self.aniso])
+        super().__init__(n_dof, frames, stencil, voronoi, mean)
+        self.EI, self.EI2 = EI, EI2
+        self.sections = sections
         self.omega_bar = np.asarray(natural_curvature, dtype=float).reshape(-1, 2, 2)
-        # only hinges with a natural curvature see the material frames
-        self.curved = np.flatnonzero(np.any(self.omega_bar != 0.0, axis=(1, 2)))
         self._const = 0.5 * np.einsum("hjk,hjk->h", self.omega_bar, self.omega_bar)
+        # the linear term of the anisotropic hinges weighs each component by EI_k / a
+        self._w_bar = self.omega_bar.copy()
+        a = self.aniso
+        if a.size:
+            weight = np.stack([EI[a], EI2[a]], axis=1) / mean[a, None]
+            self._w_bar[a] = self.omega_bar[a] * weight[:, None, :]
+            self._const[a] = 0.5 * np.einsum("hjk,hjk->h", self._w_bar[a], self.omega_bar[a])
+        #: d / (2 a) of the anisotropic hinges: the factor of sum_j (omega_1^2 - omega_2^2) inside k (...)
+        self._split = 0.5 * (EI[a] - EI2[a]) / (EI[a] + EI2[a])
+        # only hinges with a natural curvature see the material frames through the linear term
+        self.curved = np.flatnonzero(np.any(self._w_bar != 0.0, axis=(1, 2)))
 
     def _stored_frame(self, edges):
         u = self.frames.director[edges]
@@ -68,14 +99,19 @@ class RodBending(HingeEffect):
 
     def _local(self, q, order):
         t0, t1, l0, l1, theta = self._geometry(q)
-        c = self.curved
+        c, a = self.curved, self.aniso
         if order == 0:
             kb = curvature_binormal(t0, t1)
             e = dot(kb, kb) + self._const
             for j, te in enumerate((t0, t1)):
                 if c.size:
                     frame = self._stored_frame(self.hinge_edges[c, j])
-                    e[c] -= material_curvature_value(kb[c], te[c], frame, self.omega_bar[c, j], theta[c, j])
+                    e[c] -= material_curvature_value(kb[c], te[c], frame, self._w_bar[c, j], theta[c, j])
+                if a.size:
+                    frame = self._stored_frame(self.hinge_edges[a, j])
+                    w1, w2 = (material_curvature_value(kb[a], te[a], frame, np.broadcast_to(u, (a.size, 2)),
+                                                       theta[a, j]) for u in _COMPONENT)
+                    e[a] += self._split * (w1 * w1 - w2 * w2)
             return (self.k * e,)
         kb, chi, J = curvature_binormal_jacobian(t0, t1)
         n = len(t0)
@@ -93,25 +129,42 @@ class RodBending(HingeEffect):
                 edges = self.hinge_edges[c, j]
                 f, gj, Hj = material_curvature_term(
                     t0[c], t1[c], BinormalJacobian(kb[c], chi[c], J[c]), j, self._stored_frame(edges),
-                    self.omega_bar[c, j], theta[c, j],
+                    self._w_bar[c, j], theta[c, j],
                 )
                 e[c] -= f
                 g[c] -= gj
                 if H is not None:
                     H[c] -= Hj
+        if a.size:
+            self._add_anisotropy(t0[a], t1[a], BinormalJacobian(kb[a], chi[a], J[a]), theta[a], e, g, H)
         k = self.k
         g *= k[:, None]
         if H is not None:
             H *= k[:, None, None]
         return k * e, g, H
 
+    def _add_anisotropy(self, t0, t1, binormal, theta, e, g, H) -> None:
+        """Add ``d / (2 a) sum_j (omega_1^2 - omega_2^2)`` and its derivatives at the anisotropic hinges."""
+        a = self.aniso
+        c = self._split
+        for j in (0, 1):
+            frame = self._stored_frame(self.hinge_edges[a, j])
+            for sign, unit in zip((1.0, -1.0), _COMPONENT):
+                f, gf, Hf = material_curvature_term(t0, t1, binormal, j, frame, np.broadcast_to(unit, (a.size, 2)),
+                                                    theta[:, j])
+                e[a] += sign * c * f * f
+                g[a] += (2.0 * sign * c * f)[:, None] * gf
+                if H is not None:
+                    H[a] += (2.0 * sign * c)[:, None, None] * (gf[:, :, None] * gf[:, None, :] + f[:, None, None] * Hf)
+
     def side_moments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Material curvature and bending moment at every hinge, in the frame of each of its edges.
 
-        Returns ``omega / dl`` [1/m] and ``M = EI (omega - omega_bar) / dl``
+        Returns ``omega / dl`` [1/m] and ``M_k = EI_k (omega_k - omega_bar_k) / dl``
         [N m], both of shape (h, 2, 2): hinge, edge (before, after), component
-        (about ``m1``, about ``m2``). The bending energy is
-        ``sum_j dl |M^j|^2 / (4 EI)`` over the two edges.
+        (``k = 1``: the rod turning towards ``m1``, a moment about ``m2``;
+        ``k = 2``: towards ``m2``, about ``m1``). The bending energy is
+        ``sum_j dl (M_1^2 / EI_1 + M_2^2 / EI_2) / 4`` over the two edges.
         """
         t, _ = self.frames.tangents(q)
         u = self.frames.directors(q)
@@ -122,18 +175,19 @@ class RodBending(HingeEffect):
             e = self.hinge_edges[:, j]
             omega[:, j] = material_curvatures(kb, *material_frames(u[e], t[e], theta[:, j]))
         dl = self.voronoi[:, None, None]
-        return omega / dl, self.EI[:, None, None] * (omega - self.omega_bar) / dl
+        EI = np.stack([self.EI, self.EI2], axis=1)[:, None, :]
+        return omega / dl, EI * (omega - self.omega_bar) / dl
 
     def member_results(self, q):
         """Per hinge: curvatures and moments (components averaged over the two edges' frames)."""
         kappa, M = self.side_moments(q)
         k, m = kappa.mean(axis=1), M.mean(axis=1)
         return {
-            # |omega^j| = |kb| on both edges of an isotropic rod
+            # |omega^j| = |kb| on both edges
             "curvature": np.linalg.norm(kappa[:, 0], axis=1),
             "curvature_1": k[:, 0],
             "curvature_2": k[:, 1],
-            # root mean square over the two edges: the moment the bending energy stores
+            # root mean square over the two edges
             "bending_moment": np.sqrt(0.5 * np.sum(M * M, axis=(1, 2))),
             "bending_moment_1": m[:, 0],
             "bending_moment_2": m[:, 1],
@@ -143,10 +197,14 @@ class RodBending(HingeEffect):
         kappa, M = self.side_moments(q)
         n = len(self.frames.edges)
         k, m = edge_means(kappa, self.hinge_edges, n), edge_means(M, self.hinge_edges, n)
-        return LineResults(self.frames.edges, "rod", {
+        fields = {
             "curvature_1": k[:, 0],
             "curvature_2": k[:, 1],
             "bending_moment_1": m[:, 0],
             "bending_moment_2": m[:, 1],
             "bending_moment": np.hypot(m[:, 0], m[:, 1]),
-        })
+        }
+        if self.sections is not None:
+            _, length = self.frames.tangents(q)
+            fields["max_stress"] = self.sections.max_stress(length, m[:, 0], m[:, 1])
+        return LineResults(self.frames.edges, "rod", fields)

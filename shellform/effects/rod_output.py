@@ -5,12 +5,17 @@ cells are the rod edges. The value on an edge is the mean of the values at the
 hinges at its two ends (one at a rod's end edge), which is the linear
 interpolation to the edge's midpoint. Bending components are taken, at each
 hinge, in the material frame of the edge itself, so the two values averaged
-are in the same frame.
+are in the same frame. With a section shape, :class:`EdgeSections` gives the
+extreme-fibre stress of every edge from its axial force and moments.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from ..rods.shapes import extreme_fibre_stress
 
 
 def edge_means(per_side: np.ndarray, hinge_edges: np.ndarray, n_edges: int) -> np.ndarray:
@@ -33,3 +38,31 @@ def edge_means(per_side: np.ndarray, hinge_edges: np.ndarray, n_edges: int) -> n
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = sums / count[:, None]
     return mean.reshape((n_edges,) + per_side.shape[2:])
+
+
+@dataclass(frozen=True)
+class EdgeSections:
+    """What the extreme-fibre stress of every rod edge needs; NaN on edges of rods without a section shape.
+
+    Attributes
+    ----------
+    area, inv_modulus_1, inv_modulus_2 : ndarray (m,)
+        ``A`` [m^2] and ``c1 / I1``, ``c2 / I2`` [1/m^3].
+    round : ndarray of bool (m,)
+        A circular outline (bending stresses add as a vector).
+    EA, rest_length : ndarray (m,)
+        For the axial force ``N = EA (l / l_bar - 1)``, the law of
+        :class:`~shellform.effects.rod_stretch.RodStretching`.
+    """
+
+    area: np.ndarray
+    inv_modulus_1: np.ndarray
+    inv_modulus_2: np.ndarray
+    round: np.ndarray
+    EA: np.ndarray
+    rest_length: np.ndarray
+
+    def max_stress(self, length: np.ndarray, M1: np.ndarray, M2: np.ndarray) -> np.ndarray:
+        """Largest ``|N / A + M1 y1 / I1 + M2 y2 / I2|`` over each edge's section [Pa]."""
+        N = self.EA * (length / self.rest_length - 1.0)
+        return extreme_fibre_stress(N, M1, M2, self.area, self.inv_modulus_1, self.inv_modulus_2, self.round)

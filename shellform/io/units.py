@@ -13,7 +13,7 @@ FIELD_UNITS = {
     "displacement": "m", "reaction": "N", "group": "-", "mode": "-",
     "axial_force": "N", "strain": "-", "slack": "-",
     "bending_moment": "N m", "bending_moment_1": "N m", "bending_moment_2": "N m",
-    "curvature_1": "1/m", "curvature_2": "1/m", "torque": "N m", "twist_rate": "rad/m",
+    "curvature_1": "1/m", "curvature_2": "1/m", "torque": "N m", "twist_rate": "rad/m", "max_stress": "Pa",
     "joint_force": "N", "joint_gap": "m",
 }
 

@@ -98,8 +98,9 @@ class RodNetwork:
     hinge_edges : ndarray (h, 2)
         The edges (before, after) at each interior node.
     hinge_nodes : ndarray (h, 3)
-    voronoi, EI, GJ, natural_twist : ndarray (h,)
-        Per hinge; ``natural_twist`` is integrated (radians).
+    voronoi, EI, EI2, GJ, natural_twist : ndarray (h,)
+        Per hinge; ``EI``, ``EI2`` the stiffness of the material curvatures
+        ``omega_1``, ``omega_2``; ``natural_twist`` is integrated (radians).
     natural_curvature : ndarray (h, 2, 2)
         Integrated natural material curvature of each hinge in the frame of
         its edge before ``[:, 0]`` and after ``[:, 1]``.
@@ -255,6 +256,10 @@ class RodNetwork:
         return self._joined(lambda rod, a: a.EI, ())
 
     @property
+    def EI2(self) -> np.ndarray:
+        return self._joined(lambda rod, a: a.EI2, ())
+
+    @property
     def GJ(self) -> np.ndarray:
         return self._joined(lambda rod, a: a.GJ, ())
 
@@ -265,6 +270,27 @@ class RodNetwork:
     @property
     def natural_twist(self) -> np.ndarray:
         return self._joined(lambda rod, a: a.natural_twist, ())
+
+    def edge_sections(self):
+        """Section data of every edge for the extreme-fibre stress, or None when no rod has a section shape.
+
+        Edges of rods without a shape hold NaN.
+        """
+        from ..effects.rod_output import EdgeSections
+
+        if not any(a.shape is not None for a in self._arrays):
+            return None
+
+        def per_edge(value):
+            return self._joined(lambda rod, a: np.full(len(a.edge_nodes), np.nan if a.shape is None else value(a.shape)), ())
+
+        return EdgeSections(
+            area=per_edge(lambda sh: sh.area), inv_modulus_1=per_edge(lambda sh: sh.c1 / sh.I1),
+            inv_modulus_2=per_edge(lambda sh: sh.c2 / sh.I2),
+            round=self._joined(lambda rod, a: np.full(len(a.edge_nodes), a.shape is not None and a.shape.round), (),
+                               bool),
+            EA=self.EA, rest_length=self.rest_length,
+        )
 
     @property
     def joints(self) -> np.ndarray:
@@ -319,7 +345,8 @@ class RodNetwork:
         out = [RodStretching(n_dof, self.edges, self.EA, self.rest_length)]
         if self._n_hinges:
             stencil = self.hinge_stencils()
-            out.append(RodBending(n_dof, self.frames, stencil, self.voronoi, self.EI, self.natural_curvature))
+            out.append(RodBending(n_dof, self.frames, stencil, self.voronoi, self.EI, self.natural_curvature,
+                                  EI2=self.EI2, sections=self.edge_sections()))
             out.append(RodTwisting(n_dof, self.frames, stencil, self.voronoi, self.GJ, self.natural_twist))
         if len(self.joints):
             out.append(PenaltyJoints(n_dof, self.joints, self.joint_stiffness))

@@ -25,6 +25,7 @@ from .kinematics import (
     space_parallel_directors,
 )
 from .section import RestShape, RodSection
+from .shapes import SectionShape
 
 
 @dataclass(frozen=True)
@@ -44,11 +45,17 @@ class RodArrays:
         First director of each edge's rest frame.
     hinge_edges : ndarray (h, 2)
         The edges (before, after) at each hinge, numbered along the rod.
-    voronoi, EI, GJ : ndarray (h,)
+    voronoi, EI, EI2, GJ : ndarray (h,)
+        ``EI`` and ``EI2`` the stiffness of the material curvatures
+        ``omega_1`` and ``omega_2``.
+    shape : SectionShape or None
+        The section's geometry, for stresses.
     natural_curvature : ndarray (h, 2, 2)
         Integrated, in the frame of the edge before ``[:, 0]`` and after ``[:, 1]``.
     natural_twist : ndarray (h,)
-        Integrated (radians), including the reference twist of the rest frames.
+        Integrated (radians): the natural twist rate times the Voronoi length,
+        plus, unless the rod is straight when unstressed, the reference twist
+        of the rest frames (then the rest frames carry no twist stress).
     """
 
     nodes: np.ndarray
@@ -61,9 +68,11 @@ class RodArrays:
     hinge_edges: np.ndarray
     voronoi: np.ndarray
     EI: np.ndarray
+    EI2: np.ndarray
     GJ: np.ndarray
     natural_curvature: np.ndarray
     natural_twist: np.ndarray
+    shape: SectionShape | None = None
 
     @property
     def hinge_nodes(self) -> np.ndarray:
@@ -92,18 +101,23 @@ def rod_arrays(x: np.ndarray, nodes, section: RodSection, rest: RestShape, close
     hinge = _consecutive_pairs(np.arange(m), closed)
     h = len(hinge)
     EI = broadcast_property(section.EI, h, f"rod {name!r} EI", item="hinge") if h else np.zeros(0)
+    EI2 = EI if section.EI2 is None else (
+        broadcast_property(section.EI2, h, f"rod {name!r} EI2", item="hinge") if h else np.zeros(0))
     GJ = broadcast_property(section.GJ, h, f"rod {name!r} GJ", item="hinge") if h else np.zeros(0)
     twist_rate = _twist_rates(rest.natural_twist, h, name)
 
     t = vec / length[:, None]
-    u = space_parallel_directors(t, _first_directors(t, rest.director, name), np.arange(-1, m - 1))
+    u = _rest_directors(t, rest.director, name)
     e0, e1 = hinge[:, 0], hinge[:, 1]
     voronoi = 0.5 * (rest_length[e0] + rest_length[e1])
     omega = _natural_curvature(rest.natural_curvature, t, u, hinge, voronoi, name)
+    # a rod straight when unstressed is untwisted then: the twist of its rest frames is a deformation
+    straight = isinstance(rest.natural_curvature, str) and rest.natural_curvature == "straight"
+    tau_bar = twist_rate * voronoi + (0.0 if straight else _reference_twist(t, u, hinge))
     return RodArrays(
         nodes=idx, edge_nodes=e_nodes, rest_length=rest_length, EA=EA, mass_per_length=mpl,
-        rotational_inertia=rot, director=u, hinge_edges=hinge, voronoi=voronoi, EI=EI, GJ=GJ,
-        natural_curvature=omega, natural_twist=_reference_twist(t, u, hinge) + twist_rate * voronoi,
+        rotational_inertia=rot, director=u, hinge_edges=hinge, voronoi=voronoi, EI=EI, EI2=EI2, GJ=GJ,
+        natural_curvature=omega, natural_twist=tau_bar, shape=section.shape,
     )
 
 
@@ -149,6 +163,22 @@ def _twist_rates(natural_twist, h: int, name: str) -> np.ndarray:
     if rate.shape != (h,) or not np.all(np.isfinite(rate)):
         raise ModelError(f"rod {name!r}: natural_twist must be finite, a scalar or {h} values")
     return rate
+
+
+def _rest_directors(t: np.ndarray, director, name: str) -> np.ndarray:
+    """Directors of the rest frames: given per edge, or transported along the rod from the first edge's."""
+    m = len(t)
+    d = None if director is None else np.asarray(director, dtype=float)
+    if d is None or d.shape == (3,):
+        return space_parallel_directors(t, _first_directors(t, director, name), np.arange(-1, m - 1))
+    if d.shape != (m, 3) or not np.all(np.isfinite(d)):
+        raise ModelError(f"rod {name!r}: director must be 3 finite numbers or one such vector per edge ({m}, 3)")
+    p = d - np.einsum("ij,ij->i", d, t)[:, None] * t
+    size = np.linalg.norm(p, axis=1)
+    bad = np.flatnonzero(size < 1e-8 * np.maximum(np.linalg.norm(d, axis=1), 1e-300))
+    if bad.size:
+        raise ModelError(f"rod {name!r}: the director of edge {int(bad[0])} is zero or parallel to the edge")
+    return p / size[:, None]
 
 
 def _first_directors(t: np.ndarray, director, name: str) -> np.ndarray:

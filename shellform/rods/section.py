@@ -2,7 +2,8 @@
 
 :class:`RodSection` holds the stiffness and inertia per unit length,
 :class:`RestShape` the shape in which the rod carries no stress;
-:func:`circular_section` gives the section of a solid circular rod.
+:func:`section_of` gives the section of a shape (:mod:`shellform.rods.shapes`)
+in a material, :func:`circular_section` that of a solid circular rod.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ModelError
+from .shapes import SectionShape, solid_circle
 
 
 @dataclass(frozen=True)
@@ -27,12 +29,20 @@ class RodSection:
     EA : float or (n_edges,)
         Axial stiffness [N] per edge.
     EI, GJ : float or (n_hinges,)
-        Bending and torsional stiffness [N m^2] per interior node.
+        Bending and torsional stiffness [N m^2] per interior node. ``EI``
+        is the stiffness ``E I1`` of the material curvature ``omega_1``
+        (the rod turning towards ``m1``).
     mass_per_length : float
         [kg/m], lumped to the nodes (self-weight and dynamics).
     rotational_inertia : float
         Mass moment of inertia about the axis per unit length [kg m]
-        (``rho J``), lumped to the twist DOFs for dynamics.
+        (``rho (I1 + I2)``), lumped to the twist DOFs for dynamics.
+    EI2 : float or (n_hinges,), optional
+        Stiffness ``E I2`` of the curvature ``omega_2`` (turning towards
+        ``m2``); default ``EI`` (an isotropic section).
+    shape : SectionShape, optional
+        The section's geometry; with it the rod's results include the
+        extreme-fibre stress ``max_stress``.
     """
 
     EA: ArrayLike
@@ -40,6 +50,8 @@ class RodSection:
     GJ: ArrayLike
     mass_per_length: float = 0.0
     rotational_inertia: float = 0.0
+    EI2: ArrayLike | None = None
+    shape: SectionShape | None = None
 
 
 @dataclass(frozen=True)
@@ -58,10 +70,13 @@ class RestShape:
         Natural twist rate [rad/m] on top of the twist-free rest frames.
     rest_length : float or (n_edges,), optional
         Unstressed edge lengths; default: the reference edge lengths.
-    director : array_like (3,), optional
-        First material director of the first edge (projected perpendicular
-        to it); default: vertical projected, or x for vertical edges.
-        The frames of the other edges follow by space-parallel transport.
+    director : array_like (3,) or (n_edges, 3), optional
+        One vector: the first material director of the first edge (projected
+        perpendicular to it), the frames of the other edges following by
+        space-parallel transport; default: vertical projected, or x for
+        vertical edges. One vector per edge (projected perpendicular to each
+        edge): the section's orientation along the rod, for example the
+        surface normal of a gridshell.
     """
 
     natural_curvature: str | ArrayLike = "rest"
@@ -70,18 +85,25 @@ class RestShape:
     director: ArrayLike | None = None
 
 
+def section_of(shape: SectionShape, E: float, G: float, density: float = 0.0) -> RodSection:
+    """Stiffness and inertia per unit length of a section ``shape`` in a material ``(E, G, density)``.
+
+    ``EA = E A``, ``EI = E I1``, ``EI2 = E I2``, ``GJ = G J``, mass per
+    length ``rho A``, rotational inertia per length ``rho (I1 + I2)``.
+    """
+    for what, v in (("E", E), ("G", G)):
+        if not np.isfinite(v) or v <= 0:
+            raise ModelError(f"section: {what} must be positive and finite, got {v}")
+    if not np.isfinite(density) or density < 0:
+        raise ModelError(f"section: density must be non-negative, got {density}")
+    return RodSection(EA=E * shape.area, EI=E * shape.I1, GJ=G * shape.J, mass_per_length=density * shape.area,
+                      rotational_inertia=density * shape.polar_moment, EI2=E * shape.I2, shape=shape)
+
+
 def circular_section(E: float, G: float, radius: float, density: float = 0.0) -> RodSection:
     """Stiffness and inertia per unit length of a solid circular rod.
 
     ``A = pi r^2``, ``I = pi r^4 / 4``, ``J = pi r^4 / 2`` (as in the gridshell
     paper).
     """
-    for what, v in (("E", E), ("G", G), ("radius", radius)):
-        if not np.isfinite(v) or v <= 0:
-            raise ModelError(f"circular section: {what} must be positive and finite, got {v}")
-    if not np.isfinite(density) or density < 0:
-        raise ModelError(f"circular section: density must be non-negative, got {density}")
-    A = np.pi * radius**2
-    I = np.pi * radius**4 / 4
-    J = np.pi * radius**4 / 2
-    return RodSection(EA=E * A, EI=E * I, GJ=G * J, mass_per_length=density * A, rotational_inertia=density * J)
+    return section_of(solid_circle(radius), E, G, density)

@@ -27,6 +27,11 @@ EULER_SOURCE = "Euler buckling, pi^2 EI / (K L)^2"
 GREENHILL_TORQUE = 2 * 4.493409457909064
 GREENHILL_SOURCE = "Greenhill twist buckling, clamped ends"
 ROD_BUCKLING_TOLERANCE = 1e-2
+# lateral-torsional buckling of a narrow cantilever under an end load at the centroid (Prandtl 1899,
+# Michell 1899; Timoshenko and Gere, Theory of Elastic Stability, 2nd ed., section 6.3):
+# P_cr = 4.013 sqrt(EI_min GJ) / L^2 when the stiff bending stiffness is far larger than both
+PRANDTL_COEFFICIENT = 4.013
+PRANDTL_SOURCE = "lateral-torsional buckling of a narrow cantilever (Prandtl, Michell): 4.013 sqrt(EI GJ) / L^2"
 
 # multi-body rope approach (the MRA paper, DOI 10.23967/wccm-apcom.2022.075): rest states of hanging nets
 MRA_SOURCE = "multi-body rope approach, Sec. 3 (Manuello Bertetto et al., WCCM-APCOM 2022)"
