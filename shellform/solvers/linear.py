@@ -30,6 +30,29 @@ class SingularMatrixError(RuntimeError):
     """The matrix could not be factorised or the solve did not converge."""
 
 
+_CONTROLLER = None
+
+
+def single_threaded():
+    """A context in which BLAS and LAPACK run on one thread (threadpoolctl).
+
+    The dense eigenvalue solves of small models are a few milliseconds of
+    BLAS calls too small to share: on the 2-core reference machine under
+    load, ``eigvalsh`` of a 400 x 400 matrix took 81 ms (median of 30; up to
+    3.4 s) with two OpenBLAS threads and 12 ms limited to one; at 100 x 100,
+    16 ms against 0.55 ms (``benchmarks/bench_dense_threads.py``). The limit
+    holds inside the block only, so the caller's own settings are untouched;
+    entering it costs 0.02 ms.
+    """
+    global _CONTROLLER
+    if _CONTROLLER is None:
+        import scipy.linalg  # noqa: F401  (loads the BLAS the controller must see)
+        from threadpoolctl import ThreadpoolController
+
+        _CONTROLLER = ThreadpoolController()
+    return _CONTROLLER.limit(limits=1, user_api="blas")
+
+
 def _upper_csc(A) -> sp.csc_matrix:
     """Upper triangle of a symmetric matrix in CSC form, diagonal always stored.
 
@@ -61,6 +84,63 @@ def _upper_csc(A) -> sp.csc_matrix:
     return sp.csc_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
 
 
+def shift_diagonal(A, sigma) -> sp.csr_matrix:
+    """``A + diag(sigma)`` (a number or one per row) on the pattern of ``A``.
+
+    A sparse sum drops entries that happen to be zero, and with them the
+    sparsity pattern a kept symbolic analysis was made for; this keeps it
+    when ``A`` stores its whole diagonal (every tangent of a System does).
+    """
+    A = sp.csr_matrix(A)
+    n = A.shape[0]
+    row = np.repeat(np.arange(n), np.diff(A.indptr))
+    on_diag = np.flatnonzero(A.indices == row)
+    if on_diag.size != n or not A.has_canonical_format:
+        return sp.csr_matrix(A + sp.diags(np.broadcast_to(np.asarray(sigma, dtype=float), (n,))))
+    B = sp.csr_matrix((A.data.copy(), A.indices, A.indptr), shape=A.shape)
+    B.data[on_diag] += sigma
+    return B
+
+
+class _SymbolicPool:
+    """qdldl solvers that no factor holds any more, kept by sparsity pattern.
+
+    A qdldl solver keeps the AMD ordering and the symbolic factorisation of
+    its pattern; a refactorisation of new values on the same pattern
+    (``update``) skips both. On the n = 11 hemisphere's tangent (7,628
+    unknowns) a fresh factorisation takes 9.6 ms and an update 2.1 ms; on
+    the n = 5 one (3,688) 1.8 ms and 0.5 ms. An :class:`LDLFactor` gives its
+    solver back here when it is freed, and a new factor of a matrix with the
+    same pattern takes it, so that one analysis per pattern serves a whole
+    run: the Newton solves, the stability counts, the shifted
+    factorisations of the eigenvalue solves, implicit Euler's steps.
+    """
+
+    #: solvers kept at most (each holds one factor's storage)
+    size = 4
+
+    def __init__(self):
+        self._items: list[tuple[np.ndarray, np.ndarray, object]] = []
+
+    def take(self, U: sp.csc_matrix):
+        for k, (indptr, indices, solver) in enumerate(self._items):
+            if indptr.shape == U.indptr.shape and indices.shape == U.indices.shape and np.array_equal(
+                    indptr, U.indptr) and np.array_equal(indices, U.indices):
+                del self._items[k]
+                return solver
+        return None
+
+    def give(self, U: sp.csc_matrix, solver) -> None:
+        self._items.insert(0, (U.indptr, U.indices, solver))
+        del self._items[self.size:]
+
+    def clear(self) -> None:
+        self._items.clear()
+
+
+_POOL = _SymbolicPool()
+
+
 class LDLFactor:
     """Sparse ``L D L^T`` of a symmetric matrix (QDLDL, AMD ordering, no pivoting).
 
@@ -86,6 +166,9 @@ class LDLFactor:
         A factor of a matrix with the same sparsity pattern; its ordering and
         symbolic factorisation are reused (qdldl ``update``). ``previous``
         gives its storage to the new factor and cannot solve any more.
+        Without it, the analysis of a freed factor of the same pattern is
+        reused when there is one (:class:`_SymbolicPool`); the factor is the
+        same either way.
     check : float or None
         Largest accepted backward error of a solve (None: no check).
     refine : int
@@ -110,7 +193,17 @@ class LDLFactor:
         self.scale = float(np.max(np.abs(U.diagonal()))) if self.n else 0.0
         if self.scale == 0.0:
             self.scale = float(np.max(np.abs(U.data))) if U.nnz else 1.0
-        if (
+        self._solver = None
+        pooled = None
+        if previous is None or previous._solver is None:
+            pooled = _POOL.take(U)
+        if pooled is not None:
+            solver = pooled
+            try:
+                solver.update(U, upper=True)
+            except (RuntimeError, ValueError) as exc:
+                raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
+        elif (
             previous is not None
             and previous._solver is not None
             and previous._U.shape == U.shape
@@ -136,6 +229,13 @@ class LDLFactor:
         self._solver = solver
         self.d = d
         self._norm_inf = None
+
+    def __del__(self):
+        # the solver's ordering and symbolic factorisation serve the next factor of this pattern
+        solver = getattr(self, "_solver", None)
+        if solver is not None and _POOL is not None:
+            self._solver = None
+            _POOL.give(self._U, solver)
 
     # -- inertia --------------------------------------------------------------------
     @property

@@ -29,7 +29,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .linear import LDLFactor, SingularMatrixError
+from .linear import LDLFactor, SingularMatrixError, shift_diagonal, single_threaded
 
 #: below this size eigenvalue problems are solved densely
 DENSE_LIMIT = 400
@@ -88,7 +88,8 @@ def _diag_scale(A) -> float:
 
 
 def _dense_inertia(A, zero_tol: float, method: str = "dense", ratio=float("nan")) -> Inertia:
-    w = sla.eigvalsh(A.toarray() if sp.issparse(A) else np.asarray(A))
+    with single_threaded():
+        w = sla.eigvalsh(A.toarray() if sp.issparse(A) else np.asarray(A))
     return Inertia(
         n_negative=int(np.sum(w < -zero_tol)),
         n_zero=int(np.sum(np.abs(w) <= zero_tol)),
@@ -109,7 +110,7 @@ def _shift_invert_eigsh(A, k: int, sigma: float, vectors: bool):
     sits just off zero, so ``A - sigma I`` is non-singular even when ``A`` is.
     """
     n = A.shape[0]
-    F = LDLFactor(sp.csr_matrix(A - sigma * sp.identity(n, format="csr")))
+    F = LDLFactor(shift_diagonal(A, -sigma))
     op = spla.LinearOperator((n, n), matvec=lambda v: F.solve(np.asarray(v).ravel()), dtype=float)
     return spla.eigsh(sp.csr_matrix(A), k=k, sigma=sigma, which="LM", OPinv=op, return_eigenvectors=vectors,
                       v0=start_vector(A.shape[0]))
@@ -119,7 +120,8 @@ def _eigs_near_zero(A, k: int, scale: float) -> np.ndarray:
     """The ``k`` eigenvalues of ``A`` closest to zero."""
     n = A.shape[0]
     if n <= DENSE_LIMIT or k >= n - 1:
-        w = sla.eigvalsh(A.toarray())
+        with single_threaded():
+            w = sla.eigvalsh(A.toarray())
         return w[np.argsort(np.abs(w))[:k]]
     last = None
     # shift-invert about a point slightly off zero: A itself may be singular
@@ -208,12 +210,11 @@ def _shifted_inertia(A, scale: float, pivot_tol: float, band: float, ztol: float
     bracket cannot be trusted; None when none can.
     """
     n = A.shape[0]
-    eye = sp.identity(n, format="csr")
     for rel in (band, 10 * band, 100 * band):
         sigma = rel * scale
         try:
-            f_lo = LDLFactor(A + sigma * eye)
-            f_hi = LDLFactor(A - sigma * eye)
+            f_lo = LDLFactor(shift_diagonal(A, sigma))
+            f_hi = LDLFactor(shift_diagonal(A, -sigma))
         except SingularMatrixError:
             continue
         # the shifted matrices have no eigenvalue in (-sigma, sigma): their pivots
@@ -271,7 +272,8 @@ def critical_modes(A, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
     n = A.shape[0]
     k = int(min(max(k, 1), n))
     if n <= DENSE_LIMIT or k >= n - 1:
-        w, V = sla.eigh(A.toarray())
+        with single_threaded():
+            w, V = sla.eigh(A.toarray())
     else:
         scale = _diag_scale(A)
         last = None
@@ -318,7 +320,7 @@ def count_negative(K) -> int:
 def _eigsh_about(K, sigma: float):
     """Eigenpair of ``K`` nearest ``sigma`` by shift-invert Lanczos, inverting with LDL^T."""
     n = K.shape[0]
-    A = K if sigma == 0.0 else (K - sigma * sp.identity(n, format="csr")).tocsr()
+    A = K if sigma == 0.0 else shift_diagonal(K, -sigma)
     F = LDLFactor(A)
     op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b)), dtype=float)
     w, V = spla.eigsh(K, k=1, sigma=sigma, which="LM", OPinv=op, tol=1e-9, v0=start_vector(n))
@@ -344,7 +346,7 @@ def smallest_eigenpair(K) -> tuple[float, np.ndarray | None]:
             return lam, v
         sigma = -2.0 * abs(lam)
         for _ in range(40):
-            G = LDLFactor((K - sigma * sp.identity(K.shape[0], format="csr")).tocsr())
+            G = LDLFactor(shift_diagonal(K, -sigma))
             if G.n_negative_pivots == 0:
                 lam, v, _ = _eigsh_about(K, sigma)
                 return lam, v
