@@ -51,5 +51,6 @@ formats = ["3dm"]
 """)
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     model = rhino3dm.File3dm.Read(str(tmp_path / "out" / "state.3dm"))
-    assert [layer.Name for layer in model.Layers] == ["chain"]
-    assert len(model.Objects) == 2
+    assert [layer.FullPath for layer in model.Layers] == ["members", "members::chain", "supports", "reactions"]
+    kinds = sorted(type(o.Geometry).__name__ for o in model.Objects)
+    assert kinds == ["LineCurve"] * 4 + ["Point"] * 2  # two ropes, two reactions, two supports

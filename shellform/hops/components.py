@@ -208,9 +208,8 @@ def _rhino_mesh(points, quads):
     import rhino3dm
 
     mesh = rhino3dm.Mesh()
-    mesh.Vertices.UseDoublePrecisionVertices = True
     for p in np.asarray(points, dtype=float):
-        mesh.Vertices.Add(float(p[0]), float(p[1]), float(p[2]))
+        mesh.Vertices.AddPoint3d(float(p[0]), float(p[1]), float(p[2]))  # double precision
     for f in np.asarray(quads, dtype=int):
         mesh.Faces.AddFace(*map(int, f))
     mesh.Normals.ComputeNormals()
@@ -424,8 +423,8 @@ _TRACE_INPUTS = (
     Param("Kind", "Text", "Member law: bar or rope", default="bar", key="members.kind"),
     Param("EA", "Number", "Axial stiffness of every member", "N", key="members.EA"),
     Param("Supports", "Point", "Supported nodes", "m", many=True, key="supports.nodes"),
-    Param("SupportDofs", "Text", "Fixed components of the supports, any of x, y, z", default="xyz",
-          key="supports.dofs"),
+    Param("SupportDofs", "Text", "Fixed components of the supports, any of x, y, z: one for all, or one per "
+          "support", many=True, default=["xyz"], key="supports.dofs"),
     Param("LoadPoints", "Point", "Loaded nodes", "m", many=True, optional=True, key="loads.nodes"),
     Param("Force", "Vector", "Force on each loaded node, times the load factor", "N", optional=True,
           key="loads.force"),
@@ -467,7 +466,7 @@ def _trace_scene(v: dict) -> Built:
         "title": "from Grasshopper",
         "nodes": {"coordinates": nodes.tolist()},
         "members": [{"kind": v["Kind"], "connectivity": pairs.tolist(), "EA": v["EA"]}],
-        "supports": [{"nodes": _nearest_nodes(nodes, v["Supports"], tol, "Supports"), "dofs": v["SupportDofs"]}],
+        "supports": _supports(_nearest_nodes(nodes, v["Supports"], tol, "Supports"), v["SupportDofs"]),
         "analysis": {"type": "continuation", "continuation": {"control": v["Control"], "max_steps": v["MaxSteps"]}},
     }
     c = scene["analysis"]["continuation"]
@@ -483,12 +482,22 @@ def _trace_scene(v: dict) -> Built:
             raise InputError("Direction", "is required with PrescribedPoints")
         scene["prescribed"] = [{"nodes": _nearest_nodes(nodes, v["PrescribedPoints"], tol, "PrescribedPoints"),
                                 "direction": v["Direction"]}]
-    keys = {p.key.replace("members.", "members[0].").replace("supports.", "supports[0].")
-            .replace("loads.", "loads[0].").replace("prescribed.", "prescribed[0]."): p.name
-            for p in _TRACE_INPUTS if p.key}
+    keys = {p.key: p.name for p in _TRACE_INPUTS if p.key}
     keys.update({"members": "Members", "supports": "Supports", "loads": "LoadPoints", "prescribed": "PrescribedPoints",
                  "nodes": "Members", "analysis.continuation": "Control"})
     return Built(scene, keys, {"nodes": nodes, "pairs": pairs})
+
+
+def _supports(nodes: list[int], dofs: list) -> list[dict]:
+    """One support entry per distinct set of fixed components."""
+    if len(dofs) not in (1, len(nodes)):
+        raise InputError("SupportDofs", f"has {len(dofs)} items for {len(nodes)} supports; give one, or one per "
+                         "support")
+    dofs = dofs * len(nodes) if len(dofs) == 1 else dofs
+    entries: dict = {}
+    for n, d in zip(nodes, dofs):
+        entries.setdefault(d if isinstance(d, str) else json.dumps(d), ([], d))[0].append(n)
+    return [{"nodes": ns, "dofs": d} for ns, d in entries.values()]
 
 
 def _trace_reply(result, v, context) -> dict:

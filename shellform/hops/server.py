@@ -144,7 +144,7 @@ class HopsApp:
             values[p.name] = p.default if value is None else value
         built = component.build(values)
         try:
-            scene = parse_scene(built.scene)
+            scene = parse_scene(_given(built.scene))
         except SceneError as exc:
             raise InputError(_input_of(exc.key, built.inputs) or component.name, str(exc)) from None
         with self._run_lock:
@@ -179,6 +179,15 @@ class HopsApp:
         return progress
 
 
+def _given(data):
+    """A scene without the keys of unconnected inputs (None): absent, so the scene's defaults and checks apply."""
+    if isinstance(data, dict):
+        return {k: _given(v) for k, v in data.items() if v is not None}
+    if isinstance(data, list):
+        return [_given(v) for v in data]
+    return data
+
+
 def _input_of(key: str, inputs: dict) -> str | None:
     """The input that fills a scene key (the longest matching prefix), if any."""
     bare = re.sub(r"\[\d+\]", "", key)
@@ -210,11 +219,13 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _send(self, status: int, payload) -> None:
         data = json.dumps(payload).encode()
-        self.send_response(status)
-        self.send_header("Content-Type", "application/json")
-        self.send_header("Content-Length", str(len(data)))
-        self.end_headers()
-        self.wfile.write(data)
+        self.log_request(status, len(data))
+        reason = self.responses.get(status, ("",))[0]
+        head = (f"{self.protocol_version} {status} {reason}\r\nServer: shellform\r\nContent-Type: application/json\r\n"
+                f"Content-Length: {len(data)}\r\n\r\n").encode()
+        # MSG_NOSIGNAL: a client that has gone is an error here, never a SIGPIPE (the mesher's library may
+        # have set SIGPIPE back to its default, which ends the process)
+        self.connection.sendall(head + data, socket.MSG_NOSIGNAL)
 
     def do_GET(self):  # noqa: N802 (http.server's name)
         path = self.path.split("?", 1)[0]

@@ -94,9 +94,8 @@ class _Document:
 
     def mesh(self, layer, pts, faces, name=""):
         mesh = self.r3.Mesh()
-        mesh.Vertices.UseDoublePrecisionVertices = True
         for p in np.asarray(pts, dtype=float):
-            mesh.Vertices.Add(*p)
+            mesh.Vertices.AddPoint3d(*map(float, p))  # double precision
         for f in np.asarray(faces, dtype=int):
             mesh.Faces.AddFace(*map(int, f))
         mesh.Normals.ComputeNormals()
