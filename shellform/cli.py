@@ -92,6 +92,21 @@ def _cmd_study(args) -> int:
     return 0 if summary["failed"] == 0 else 1
 
 
+def _cmd_serve(args) -> int:
+    from .hops.server import HopsApp, HopsServer
+
+    server = HopsServer((args.host, args.port), HopsApp(timeout=args.timeout), verbose=args.verbose)
+    print(f"shellform Hops server on {server.url}: components {', '.join(server.app.components)}; in Grasshopper, "
+          f"point a Hops component at {server.url}/FormFind (Ctrl+C stops the server)", file=sys.stderr, flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
+    return 0
+
+
 def _cmd_schema(args) -> int:
     from .schema import reference
     from .scene_format import SCENE
@@ -150,6 +165,14 @@ def main(argv=None) -> int:
     imp.add_argument("--rerun", action="store_true", help="run every sample again, also those finished before")
     imp.add_argument("--quiet", action="store_true", help="no progress output")
     imp.set_defaults(func=_cmd_study)
+    serve = sub.add_parser("serve", help="serve shellform's analyses to Grasshopper's Hops component")
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1, this machine "
+                       "only)")
+    serve.add_argument("--port", type=int, default=5000, help="port (default: 5000; 0 picks a free one)")
+    serve.add_argument("--timeout", type=float, default=None, help="stop a run after this many seconds (default: "
+                       "none; a run also stops when Hops gives up on it)")
+    serve.add_argument("-v", "--verbose", action="store_true", help="log every request")
+    serve.set_defaults(func=_cmd_serve)
     schema = sub.add_parser("schema", help="print the scene reference (Markdown)")
     schema.set_defaults(func=_cmd_schema)
     args = parser.parse_args(argv)
