@@ -73,8 +73,12 @@ class ContinuationOptions:
         Count negative eigenvalues at every point (needed for bifurcations).
     detect_events : bool
         Detect and locate limit and bifurcation points.
+    critical_rtol : float
+        Critical points are located until their critical load (the path
+        parameter) is known to this relative tolerance
+        (:mod:`~shellform.solvers.continuation.events`).
     locate_tol : float
-        Bisection stops when the bracket is this fraction of the step length.
+        Location also stops when the bracket is this fraction of the step length.
     on_bifurcation : {"continue", "switch", "stop"}
         Stay on the primary branch, follow the secondary branch, or stop.
     branch_side : {1, -1}
@@ -123,6 +127,7 @@ class ContinuationOptions:
     max_inertia_cutbacks: int = 1
     stability: bool = True
     detect_events: bool = True
+    critical_rtol: float = 1e-6
     locate_tol: float = 1e-8
     on_bifurcation: str = "continue"
     branch_side: int = 1

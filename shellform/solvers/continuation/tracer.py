@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from ...errors import ModelError
-from ..linear import LDLFactor, SingularMatrixError
+from ..linear import CholeskyFactor, LDLFactor, SingularMatrixError
 from ..mechanism import describe_soft_modes
 from ..stability import InertiaError, inertia
 from ..step_bounds import FOLD_OVERSHOOT, fold_distance
@@ -51,6 +51,10 @@ class Tracer:
         self.timer = Timer()
         self.t_created = time.perf_counter()
         self.pb = Problem(system, control, o.fixed_lam, o.fixed_mu, self.timer, o.linear_solver)
+        # Cholesky first while the path is stable: where it succeeds there is no negative eigenvalue
+        self.pb.definite_hint = lambda: self.o.stability and getattr(self, "n_neg", -1) == 0
+        #: ``(u, K, g, F)`` of the last point analysed: what follows it (event location) reuses them
+        self.last_linearisation = None
         self.free = system.free
         self.monitors = dict(o.monitors or {})
         for name, spec in self.monitors.items():
@@ -122,6 +126,7 @@ class Tracer:
         F = self.pb.factor(K)
         t_du, t_dp = self.tangent_from(K, g, F, ref_du, ref_dp)
         n_neg = self.count(K, F)
+        self.last_linearisation = (u, K, g, F)
         return t_du, t_dp, n_neg, K
 
     def tangent_from(self, K, g, F, ref_du, ref_dp):
@@ -155,6 +160,8 @@ class Tracer:
             return -1
         t0 = time.perf_counter()
         try:
+            if isinstance(F, CholeskyFactor):
+                return 0  # a Cholesky factor exists only of a positive definite matrix
             fac = F if isinstance(F, LDLFactor) else None
             I = inertia(K, factor=fac)
             return I.n_below_zero if signed else I.n_negative
@@ -320,13 +327,12 @@ class Tracer:
         new_events = []
         turned = math.copysign(1.0, B.t_dp) != math.copysign(1.0, self.t_dp)
         dn = B.n_neg - n_A if (B.n_neg >= 0 and n_A >= 0) else 0
-        end = (B.u, B.p, B.q, B.r)
         if turned:
-            ev, _ = locate(self, "limit", A, end, ds, n_A)
+            ev, _ = locate(self, "limit", A, B, ds, n_A)
             ev.n_negative_after = B.n_neg
             new_events.append(ev)
         if (not turned and dn != 0) or (turned and abs(dn) > 1):
-            ev, _ = locate(self, "bifurcation", A, end, ds, n_A)
+            ev, _ = locate(self, "bifurcation", A, B, ds, n_A)
             if turned:
                 ev.located = False
                 ev.message = "bifurcation and limit point in one step; bracket is the whole step"
