@@ -14,8 +14,9 @@ read by meshio. The analysis (``[analysis] type``) must suit the geometry:
 =====================  =============================================
 geometry               analyses
 =====================  =============================================
-``[nodes]``, ``file``  ``static``, ``continuation``, ``dynamics``
-planform grids         ``mra``, ``form_and_buckle``
+``[nodes]``            ``static``, ``continuation``, ``dynamics``
+``file``               those and ``mra`` (any net of quads, triangles, lines)
+planforms              ``mra``, ``form_and_buckle`` (structured grids)
 ``hemisphere``         ``indentation``
 =====================  =============================================
 
@@ -54,7 +55,7 @@ from .scene_checks import (
 )
 from .scene_effects import default_effects, random_forces, scene_system
 from .scene_files import MAX_SCENE_BYTES, parse_toml, read_scene_text, shown_path
-from .scene_format import PLANFORMS, SCENE
+from .scene_format import FORM_FINDING, PLANFORMS, SCENE
 from .scene_legacy import merge_legacy, split_legacy
 from .scene_model import Model, build_model
 from .scene_mra import mra_params
@@ -126,10 +127,10 @@ def parse_scene(data: dict, base_dir=None) -> dict:
     scene["single_support"] = isinstance(data.get("supports"), dict)
     check_scope(data, scene, source, "buckling" in legacy)
     check_imperfection(scene)
-    if source in ("nodes", "file"):
+    if source == "planform" or (source == "file" and scene["analysis"]["type"] in FORM_FINDING):
+        check_planform(scene, base_dir)
+    elif source in ("nodes", "file"):
         check_bar_rope(scene, base_dir)
-    elif source == "planform":
-        check_planform(scene)
     else:
         check_hemisphere(scene)
     return scene

@@ -43,7 +43,8 @@ def test_every_example_is_covered():
     assert sorted(p.stem for p in SCENES.glob("*.toml")) == sorted(EXAMPLES)
 
 
-EXAMPLES = ["lattice_dome", "lattice_dome_imperfect", "chain_dynamics", "hemisphere_indentation", "barrel_vault"]
+EXAMPLES = ["lattice_dome", "lattice_dome_imperfect", "chain_dynamics", "hemisphere_indentation", "barrel_vault",
+            "l_shape", "courtyard", "cable_net"]
 
 
 @pytest.mark.parametrize("name", EXAMPLES)

@@ -56,9 +56,24 @@ class QuadGrid:
     shape: tuple[int, int]
     groups: dict[str, np.ndarray] = field(default_factory=dict)
 
+    #: the grid has structured (i, j) positions, grid lines and coarser lattices
+    structured = True
+
     @property
     def n_nodes(self) -> int:
         return len(self.nodes)
+
+    @property
+    def faces(self) -> dict:
+        """Face cells by type: the quads."""
+        return {"quad": self.quads}
+
+    def boundary_edges(self) -> np.ndarray:
+        """Edges of exactly one quad (smaller node first)."""
+        e = np.sort(np.concatenate([self.quads[:, [0, 1]], self.quads[:, [1, 2]], self.quads[:, [2, 3]],
+                                    self.quads[:, [3, 0]]]), axis=1)
+        uniq, counts = np.unique(e, axis=0, return_counts=True)
+        return uniq[counts == 1]
 
     @property
     def boundary(self) -> np.ndarray:

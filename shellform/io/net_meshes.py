@@ -1,7 +1,7 @@
 """Meshes of a form-found net: the hanging net and its inverted shell (VTU).
 
-Ropes are line cells, the grid's faces quad cells; the rope results are cell
-data of the lines.
+Ropes are line cells, the grid's faces quad and triangle cells; the rope
+results are cell data of the lines.
 """
 
 from __future__ import annotations
@@ -15,13 +15,15 @@ from .mesh import write_mesh
 
 
 def net_mesh(net, positions, member_fields: dict, point_fields: dict | None = None) -> meshio.Mesh:
-    """Ropes (lines) and grid faces (quads) of a :class:`~shellform.mra.net.HangingNet` at ``positions``.
+    """Ropes (lines) and grid faces (quads, triangles) of a :class:`~shellform.mra.net.HangingNet` at ``positions``.
 
     The faces carry no rope results: their cells of a rope field are NaN (not
     computed), never a zero that colours every face as an unloaded, taut rope.
     """
-    cells = [("line", net.rope_edges), ("quad", net.grid.quads)]
-    cell_data = {k: [np.asarray(v, dtype=float), np.full(len(net.grid.quads), np.nan)] for k, v in member_fields.items()}
+    faces = list(net.grid.faces.items())
+    cells = [("line", net.rope_edges)] + faces
+    cell_data = {k: [np.asarray(v, dtype=float)] + [np.full(len(f), np.nan) for _, f in faces]
+                 for k, v in member_fields.items()}
     support = np.zeros(net.structure.n_nodes)
     support[net.supports] = 1.0
     point_data = {"support": support, **(point_fields or {})}

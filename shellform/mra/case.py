@@ -22,6 +22,8 @@ import numpy as np
 from ..errors import ModelError, SceneError
 from ..geometry.bspline import BSplineSurface, dish, height_field
 from ..geometry.grids import QuadGrid, bspline_surface_grid, ellipse_grid, rectangle_grid
+from ..geometry.meshnet import MeshNet
+from ..geometry.planforms import BoundaryCurve, curve_planform, polygon_planform, surface_planform
 from ..solvers.relaxation import START_STATES, Refinements, RelaxationOptions
 from .formfind import (STRAIN_LIMIT, FormFindingResult, HypostaticWarning, OverstretchWarning, coarse_net_outcome,
                        coarse_net_progress, form_find)
@@ -49,6 +51,7 @@ DEFAULTS = {
     "geometry": {},
     "supports": {},
     "ropes": {"slack": 0.0, "EA": None, "stiffness_ratio": 1.0e4, "mass_per_length": 1.0, "strain_limit": STRAIN_LIMIT},
+    "cables": [],
     "masses": {"node_mass": 0.0},
     "loads": {"gravity": [0.0, 0.0, -9.81]},
     "solver": _solver_defaults(),
@@ -67,7 +70,9 @@ def _merge(params: dict) -> dict:
     out = {}
     for key, default in DEFAULTS.items():
         given = params.get(key, {} if isinstance(default, dict) else default)
-        if isinstance(default, dict):
+        if key == "supports" and isinstance(given, list):
+            out[key] = given  # several entries, each with its own dofs
+        elif isinstance(default, dict):
             if not isinstance(given, dict):
                 raise SceneError(key, f"expected a table, got {type(given).__name__}")
             if key not in ("geometry", "supports"):
@@ -83,10 +88,16 @@ def _merge(params: dict) -> dict:
     return out
 
 
-def build_grid(geometry: dict) -> QuadGrid:
-    """The planform grid of a case (see the README for the keys of each type)."""
+def build_grid(geometry: dict) -> QuadGrid | MeshNet:
+    """The planform grid of a case (see the README for the keys of each type).
+
+    A mesh file (``type = "file"``) is read by the caller and passed to
+    :func:`build_net` as its grid (reading files belongs to ``shellform.io``).
+    """
     kind = geometry.get("type")
     try:
+        if kind in ("polygon", "curves", "surface"):
+            return _meshed_planform(geometry)
         if kind == "rectangle":
             return rectangle_grid(float(geometry["length_x"]), float(geometry["length_y"]),
                                   int(geometry["n_i"]), int(geometry["n_j"]), geometry.get("origin", (0, 0, 0)))
@@ -103,16 +114,36 @@ def build_grid(geometry: dict) -> QuadGrid:
             return bspline_surface_grid(srf, int(geometry["n_i"]), int(geometry["n_j"]))
     except KeyError as exc:
         raise SceneError(f"geometry.{exc.args[0]}", f"required for geometry type {kind!r}") from None
-    raise SceneError("geometry.type", f"expected 'rectangle', 'ellipse', 'disk' or 'bspline', got {kind!r}")
+    raise SceneError("geometry.type", f"expected 'rectangle', 'ellipse', 'disk', 'bspline', 'polygon', 'curves' or "
+                     f"'surface', got {kind!r}")
 
 
-def build_net(p: dict, grid: QuadGrid | None = None) -> HangingNet:
-    """The hanging net of merged case parameters."""
+def _meshed_planform(geometry: dict) -> QuadGrid | MeshNet:
+    """A gmsh planform of any shape: a polygon with holes, B-spline boundary curves, or a surface file."""
+    kind = geometry["type"]
+    mesh = {"edge_length": float(geometry["edge_length"]), "elements": geometry.get("elements", "quads")}
+    try:
+        if kind == "polygon":
+            return polygon_planform(geometry["boundary"], geometry.get("holes", ()), **mesh)
+        if kind == "curves":
+            curves = geometry["curves"]
+            n_loops = max(int(c.get("loop", 0)) for c in curves) + 1
+            loops = [[BoundaryCurve(np.asarray(c["control_points"], dtype=float), int(c.get("degree", 3)),
+                                    None if c.get("weights") is None else np.asarray(c["weights"], dtype=float))
+                      for c in curves if int(c.get("loop", 0)) == k] for k in range(n_loops)]
+            return curve_planform(loops, **mesh)
+        return surface_planform(geometry["file"], **mesh)
+    except ModelError as exc:
+        raise SceneError("geometry", str(exc)) from None
+
+
+def build_net(p: dict, grid: QuadGrid | MeshNet | None = None) -> HangingNet:
+    """The hanging net of merged case parameters (on ``grid`` when given)."""
     grid = build_grid(p["geometry"]) if grid is None else grid
     r = p["ropes"]
     return hanging_net(grid, p["supports"], slack=r["slack"], EA=r["EA"], stiffness_ratio=r["stiffness_ratio"],
                        mass_per_length=r["mass_per_length"], node_mass=p["masses"]["node_mass"],
-                       gravity=p["loads"]["gravity"])
+                       gravity=p["loads"]["gravity"], cables=tuple(p["cables"]))
 
 
 def _solver_options(p: dict, progress: Callable[[str], None] | None) -> dict:
@@ -193,6 +224,12 @@ def start_state(p: dict, net: HangingNet, options: dict,
 def _coarsened(p: dict, factor: int) -> dict:
     """The same case on a grid ``factor`` times coarser (structured positions scaled)."""
     g = dict(p["geometry"])
+    if g["type"] not in ("rectangle", "ellipse", "disk", "bspline"):
+        raise SceneError("start.type", f"a coarse start needs a grid of divisions (rectangle, ellipse, disk, bspline); "
+                         f"geometry type {g['type']!r} has an edge length: use 'flat' or 'nurbs'")
+    if not isinstance(p["supports"], dict) or p["cables"]:
+        raise SceneError("start.type", "a coarse start needs one set of suspension points held alike and no edge "
+                         "cables: use 'flat' or 'nurbs'")
     keys = [k for k in ("n_i", "n_j", "n") if k in g]
     old = {k: int(g[k]) for k in keys}
     for k in keys:
@@ -285,7 +322,8 @@ def _inverted(res: FormFindingResult, summary: dict, say) -> InvertedShell | Non
 
 
 def solve_mra_case(params: dict, progress: Callable[[str], None] | None = None, *,
-                   q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None) -> MraCase:
+                   q0: np.ndarray | None = None, v0: np.ndarray | None = None, callback=None,
+                   grid: QuadGrid | MeshNet | None = None) -> MraCase:
     """Form-find one case: start shape, relaxation, inversion, length statistics and control.
 
     Parameters
@@ -302,10 +340,13 @@ def solve_mra_case(params: dict, progress: Callable[[str], None] | None = None, 
     callback : callable, optional
         Also receives every ``RelaxationProgress`` of the form finding (for
         checkpoints); returning True stops it.
+    grid : QuadGrid or MeshNet, optional
+        The net's grid, when the caller has it (a mesh file it read);
+        default the one ``params["geometry"]`` describes.
     """
     p = _merge(params)
     say = progress or (lambda msg: None)
-    net = build_net(p)
+    net = build_net(p, grid)
     options = _solver_options(p, progress)
     say(f"MRA case {p['name']!r}: {net.structure.n_nodes} nodes, {len(net.rope_edges)} ropes, "
         f"{len(net.supports)} suspension points, scheme {options['options'].scheme}")

@@ -48,6 +48,9 @@ def coarsened_net(net: HangingNet, factor: int = 3) -> HangingNet:
     """
     if int(factor) != factor or factor < 2:
         raise ModelError(f"coarse net: the coarsening factor must be an integer of at least 2, got {factor}")
+    reason = coarsening_obstacle(net)
+    if reason:
+        raise ModelError(f"coarse net: {reason}")
     grid, s = net.grid, net.structure
     ni, nj = grid.shape
     is_support = np.zeros((ni, nj), dtype=bool)
@@ -97,6 +100,18 @@ def coarsened_net(net: HangingNet, factor: int = 3) -> HangingNet:
     out.info["lattice"] = (u[lines[0]], v[lines[1]])
     out.info["source"] = source
     return out
+
+
+def coarsening_obstacle(net: HangingNet) -> str | None:
+    """Why ``net`` has no coarse net, or None when it has one (when its suspension points allow)."""
+    if not net.grid.structured:
+        return ("the net is unstructured: a coarse net keeps every k-th grid line of a structured grid, and an "
+                "unstructured net has no grid lines")
+    if net.info.get("n_cable_ropes"):
+        return "the net has edge cables, which a coarse net of grid lines does not carry over"
+    if net.info.get("support_dofs") is None:
+        return "its suspension points hold different components, which a coarse net does not carry over"
+    return None
 
 
 def structured_lines(net: HangingNet) -> tuple[np.ndarray, np.ndarray]:

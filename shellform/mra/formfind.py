@@ -82,6 +82,7 @@ class FormFindingResult:
     rise: float
     warnings: list = field(default_factory=list)
     strain_limit: float = STRAIN_LIMIT
+    switched_off: dict = field(default_factory=dict)
 
     @property
     def converged(self) -> bool:
@@ -134,6 +135,7 @@ class FormFindingResult:
             "reaction_sum": self.reactions.sum(axis=0).tolist(),
             "hypostatic": self.hypostatic.as_dict(),
             "warnings": list(self.warnings),
+            **({"switched_off": dict(self.switched_off)} if self.switched_off else {}),
         }
 
 
@@ -320,9 +322,11 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
     MechanismError
         When the net is a mechanism the solver cannot handle.
     """
+    from .coarsen import coarsening_obstacle  # coarsen.py builds on net.py, as this module does
+
     options, finding = _split_options(options, finding, fields)
     _check_strain_limit(finding.strain_limit)
-    report = hypostatic_check(net.structure)
+    report = hypostatic_check(net.structure, rim=None if net.grid.structured else net.grid.boundary)
     notes = []
     if report.warning:
         warnings.warn(report.warning, HypostaticWarning, stacklevel=2)
@@ -332,7 +336,13 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
         raise ModelError(f"form finding: unknown start {start!r}; expected one of {START_STATES + ('coarse_net',)}")
     prep, coarse = 0.0, None
     system = net.system()
-    by_default = start == "auto" and options.scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
+    obstacle = coarsening_obstacle(net)
+    switched_off = {}
+    if obstacle is not None:
+        switched_off["coarse_net_start"] = (f"{obstacle}; a net of {COARSE_START_NODES:,} nodes or more starts "
+                                            "from the force-density shape instead")
+    by_default = (start == "auto" and options.scheme == "implicit" and net.structure.n_nodes >= COARSE_START_NODES
+                  and obstacle is None)
     if q0 is None and (start == "coarse_net" or by_default):
         q0, coarse, prep = _coarse_start(net, system, options, finding, by_default, progress, notes)
     if start == "coarse_net":
@@ -343,6 +353,7 @@ def form_find(net: HangingNet, q0: np.ndarray | None = None, *, options: Relaxat
     if coarse is not None and q0 is not None:
         res = replace(res, start="coarse_net")
     out = evaluate_state(net, system, res, report, notes, strain_limit=finding.strain_limit)
+    out.switched_off = switched_off
     for w in out.warnings[len(notes):]:
         warnings.warn(w, OverstretchWarning, stacklevel=2)
     return out

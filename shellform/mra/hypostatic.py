@@ -61,8 +61,13 @@ class HypostaticReport:
         return asdict(self)
 
 
-def hypostatic_check(structure: Structure) -> HypostaticReport:
+def hypostatic_check(structure: Structure, rim: np.ndarray | None = None) -> HypostaticReport:
     """Classify the nodes, count D.o.F and D.o.C, and check for unhandled mechanisms.
+
+    ``rim`` (the boundary nodes of an unstructured net) makes C1 the free rim
+    nodes with at least two ropes: the valence of an unstructured mesh varies
+    inside it, so "fewer ropes than the largest valence" would count interior
+    nodes as rim nodes. A structured grid (``rim`` None) uses the valence.
 
     Raises
     ------
@@ -90,8 +95,13 @@ def hypostatic_check(structure: Structure) -> HypostaticReport:
     n_A = int(np.sum(held == 3))
     n_B = int(np.sum((held > 0) & (held < 3)))
     n_C2 = int(np.sum(free & (degree == 1)))
-    n_C1 = int(np.sum(free & (degree >= 2) & (degree < full)))
-    n_int = int(np.sum(free & (degree >= full)))
+    if rim is None:
+        on_rim = degree < full
+    else:
+        on_rim = np.zeros(n, dtype=bool)
+        on_rim[np.asarray(rim, dtype=np.int64)] = True
+    n_C1 = int(np.sum(free & (degree >= 2) & on_rim))
+    n_int = int(np.sum(free & (degree >= 2) & ~on_rim))
     dof = 6 * n
     doc = WEIGHTS["A"] * n_A + WEIGHTS["B"] * n_B + WEIGHTS["C1"] * n_C1 + WEIGHTS["C2"] * n_C2 + WEIGHTS["t"] * n
     hypostatic = dof > doc
