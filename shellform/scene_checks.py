@@ -13,7 +13,10 @@ import numpy as np
 from .errors import ModelError, SceneError
 from .scene_effects import default_effects
 from .scene_errors import support_key
-from .scene_format import GRID_GROUPS
+from .scene_format import GRID_GROUPS, MESHED_PLANFORMS, PLANFORMS
+
+#: planforms meshed as structured grids of a given number of divisions
+STRUCTURED_PLANFORMS = tuple(p for p in PLANFORMS if p not in MESHED_PLANFORMS)
 from .schema import LIMITS
 
 #: time steps of a dynamics scene: beyond this a unit is almost certainly off
@@ -132,31 +135,86 @@ def _need_some(scene: dict, sup: dict, i: int, keys) -> None:
         raise SceneError(support_key(scene, i), "names no nodes: give " + ", ".join(keys[:-1]) + f" or {keys[-1]}")
 
 
-def check_planform(scene: dict) -> None:
-    """A hanging net on a planform grid: its suspension points, grid, ropes and start shape."""
+def check_planform(scene: dict, base_dir=None) -> None:
+    """A hanging net on a planform grid, a gmsh planform or a mesh file: its suspension points, grid, ropes and
+    start shape."""
     if not scene["supports"]:
         raise SceneError("supports", "a hanging net needs suspension points: a [[supports]] entry")
-    dofs = {s["dofs"] for s in scene["supports"]}
-    if len(dofs) > 1:
-        raise SceneError("supports", f"a hanging net holds the same components at every suspension point; got "
-                         f"dofs {sorted(dofs)}")
+    kind = "file" if scene["source"] == "file" else scene["geometry"]["type"]
+    structured = kind in STRUCTURED_PLANFORMS
     for i, sup in enumerate(scene["supports"]):
-        if sup["z"] is not None:
-            raise SceneError(support_key(scene, i, "z"), "applies to [nodes] and mesh-file scenes; a planform is flat")
+        if not sup["dofs"] or set(sup["dofs"].lower()) - set("xyz"):
+            raise SceneError(support_key(scene, i, "dofs"), f"got {sup['dofs']!r}; expected a combination of the "
+                             "letters x, y, z (the held components)")
+        if sup["z"] is not None and kind not in ("surface", "file"):
+            raise SceneError(support_key(scene, i, "z"), "applies to [nodes], mesh-file and surface scenes; a "
+                             "planform is flat")
         unknown = sorted(set(sup["groups"] or ()) - set(GRID_GROUPS))
-        if unknown:
+        if structured and unknown:
             raise SceneError(support_key(scene, i, "groups"), f"a planform grid has no node set {unknown[0]!r}; its sets: "
                              + ", ".join(repr(g) for g in GRID_GROUPS))
-        _need_some(scene, sup, i, ("nodes", "groups", "positions", "frames"))
-    _check_grid(scene)
+        for key in ("positions", "frames"):
+            if not structured and sup[key] is not None and len(sup[key]):
+                raise SceneError(support_key(scene, i, key), f"grid positions need a structured grid (rectangle, "
+                                 f"ellipse, disk, bspline); geometry {kind!r} is unstructured: choose nodes by "
+                                 "groups, nodes, near, box or curve")
+        _need_some(scene, sup, i, ("nodes", "groups", "positions", "frames", "near", "box", "curve", "z"))
+    for i, c in enumerate(scene["cables"]):
+        if all(c[k] is None for k in ("nodes", "groups", "near", "box", "curve")):
+            raise SceneError(f"cables[{i}]", "names no nodes: give nodes, groups, near, box or curve")
+    if structured:
+        _check_grid(scene)
+    else:
+        _check_net_geometry(scene, kind, base_dir)
     slack = scene["ropes"]["slack"] if scene["ropes"] else 0.0
     if isinstance(slack, np.ndarray) and slack.shape != (2,):
         raise SceneError("ropes.slack", f"got {len(slack)} values; expected one number or [sc_i, sc_j]")
+    if not structured and isinstance(slack, np.ndarray):
+        raise SceneError("ropes.slack", "[sc_i, sc_j] needs the two families of grid lines of a structured grid; "
+                         f"geometry {kind!r} is unstructured: give one number")
     if np.any(np.asarray(slack) <= -1.0):
         raise SceneError("ropes.slack", f"got {slack!r}; expected numbers > -1")
     st = scene["analysis"]["start_shape"]
     if st["type"] == "nurbs" and st["depth"] is None and st["control_heights"] is None:
         raise SceneError("analysis.start_shape.depth", "a 'nurbs' start needs a depth or control_heights")
+
+
+def _check_net_geometry(scene: dict, kind: str, base_dir) -> None:
+    """A gmsh planform's or mesh file's own keys: holes and curves where they apply, files that exist."""
+    g = scene["geometry"]
+    if kind != "polygon" and g["holes"]:
+        raise SceneError("geometry.holes", f"does not apply to type = {kind!r}; it applies to type 'polygon'")
+    if kind != "curves" and g["curves"]:
+        raise SceneError("geometry.curves", f"does not apply to type = {kind!r}; it applies to type 'curves'")
+    if kind == "curves":
+        if not g["curves"]:
+            raise SceneError("geometry.curves", "type 'curves' needs at least one [[geometry.curves]] entry")
+        loops = sorted({c["loop"] for c in g["curves"]})
+        if loops != list(range(len(loops))):
+            raise SceneError("geometry.curves", f"loops {loops} must be numbered 0 (outer), 1, 2, ... without gaps")
+        for k, c in enumerate(g["curves"]):
+            n = len(c["control_points"])
+            if c["degree"] >= n:
+                raise SceneError(f"geometry.curves[{k}].degree", f"got {c['degree']}; expected at most {n - 1} "
+                                 f"(the curve has {n} control points)")
+            w = c["weights"]
+            if isinstance(w, np.ndarray) and len(w) != n:
+                raise SceneError(f"geometry.curves[{k}].weights", f"has {len(w)} values for {n} control points")
+    if kind == "surface":
+        from .geometry.planforms import SURFACE_FILES
+
+        path = Path(g["file"])
+        path = path if path.is_absolute() else Path(base_dir or ".") / path
+        if path.suffix.lower() not in SURFACE_FILES:
+            raise SceneError("geometry.file", f"got {g['file']!r}; type 'surface' reads "
+                             + ", ".join(SURFACE_FILES) + " files")
+        if not path.is_file():
+            raise SceneError("geometry.file", f"{str(path)!r} does not exist or is not a file")
+        scene["geometry_path"] = path.resolve()
+    if kind == "file":
+        scene["mesh"] = _mesh_of(scene, base_dir)
+        path = Path(g["file"])
+        scene["geometry_path"] = (path if path.is_absolute() else Path(base_dir or ".") / path).resolve()
 
 
 def grid_shape(geometry: dict) -> tuple[int, int]:

@@ -12,13 +12,15 @@ from .schema import Key, Table
 from .solvers.relaxation.options import Refinements, RelaxationOptions
 
 EFFECTS = ("axial", "rope", "loads", "gravity", "imperfection")
-PLANFORMS = ("rectangle", "ellipse", "disk", "bspline")
+#: structured grids (rectangle, ellipse, disk, bspline) and gmsh planforms of any shape (polygon, curves, surface)
+PLANFORMS = ("rectangle", "ellipse", "disk", "bspline", "polygon", "curves", "surface")
+MESHED_PLANFORMS = ("polygon", "curves", "surface")
 GEOMETRIES = PLANFORMS + ("hemisphere", "file")
 ANALYSES = ("static", "continuation", "dynamics", "mra", "form_and_buckle", "indentation")
 #: analyses that suit each source of geometry (the first is the default)
 ANALYSES_OF = {
     "nodes": ("static", "continuation", "dynamics"),
-    "file": ("static", "continuation", "dynamics"),
+    "file": ("static", "continuation", "dynamics", "mra"),
     "planform": ("mra", "form_and_buckle"),
     "hemisphere": ("indentation",),
 }
@@ -46,10 +48,11 @@ GEOMETRY = Table(
     keys={
         "type": Key("str", "Geometry source.", choices=GEOMETRIES),
         "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...) or a Rhino file (.3dm), relative to "
-                    "the scene file. Line cells become members, and so do the edges of triangle and quad cells (each "
+                    "the scene file (type 'surface': a STEP, IGES or BREP file of surfaces, meshed by gmsh). Line "
+                    "cells become members, and so do the edges of triangle and quad cells (each "
                     "once). Of a Rhino file: curves are chains of lines, meshes triangles and quads, points nodes of "
                     "the named set of their layer; every layer is a named node set (docs/rhino.md).",
-                    default=None, only=("file",), required_for=("file",), max_length=1000),
+                    default=None, only=("file", "surface"), required_for=("file", "surface"), max_length=1000),
         "layers": Key("str_list", "Rhino file: read only the objects on these layers (full path 'parent::child' or "
                       "name; a parent takes its sub-layers). Default all.", default=None, only=("file",)),
         "segment_length": Key("float", "Rhino file: curves that are not polylines (arcs, NURBS) are divided into "
@@ -87,6 +90,32 @@ GEOMETRY = Table(
         "degree_v": Key("int", "Degree of the surface in v.", default=3, only=("bspline",), minimum=1),
         "weights": Key("grid", "NURBS weights, nu x nv (default: all 1, a B-spline).", default=None, **_POS,
                        only=("bspline",)),
+        "boundary": Key("points", "Corners of the planform's outer boundary, a closed polyline in order (the "
+                        "closing segment implied; the loops lie in one plane).", default=None, unit="m",
+                        only=("polygon",), required_for=("polygon",)),
+        "holes": Table(
+            array=True,
+            doc="Holes of a 'polygon' planform ([[geometry.holes]]).",
+            keys={"points": Key("points", "Corners of the hole, a closed polyline.", unit="m")},
+        ),
+        "curves": Table(
+            array=True,
+            doc="Boundary curves of a 'curves' planform ([[geometry.curves]]): B-splines or NURBS with clamped "
+                "uniform knots; the curves of a loop run end to end, in order.",
+            keys={
+                "control_points": Key("points", "Control points of the curve.", unit="m"),
+                "degree": Key("int", "Degree of the curve.", default=3, minimum=1, maximum=10),
+                "weights": Key("float_or_list", "NURBS weights, one per control point (default all 1).",
+                               default=None, **_POS),
+                "loop": Key("int", "Loop of the curve: 0 the outer boundary, 1, 2, ... the holes.", default=0,
+                            minimum=0, maximum=1000),
+            },
+        ),
+        "edge_length": Key("float", "Target length of the mesh edges (polygon, curves, surface).", default=None,
+                           unit="m", only=MESHED_PLANFORMS, required_for=MESHED_PLANFORMS, **_POS),
+        "elements": Key("str", "Mesh of a gmsh planform: quads (transfinite, a structured grid, on a single "
+                        "four-sided patch without holes; recombined unstructured elsewhere) or triangles.",
+                        default="quads", only=MESHED_PLANFORMS, choices=("quads", "triangles")),
         "voronoi_length": Key("float", "Target rod edge length dl; each segment between joints gets round(h/dl) "
                               "edges.", default=1.0e-3, unit="m", only=("hemisphere",), **_POS),
     },
@@ -118,9 +147,16 @@ SUPPORTS = Table(
         "positions": Key("positions", "Structured grid positions [i, j] of a planform (negative counts from the "
                          "end).", default=None),
         "frames": FRAME,
+        "near": Key("points", "The node nearest to each of these points.", default=None, unit="m"),
+        "box": Key("points", "The nodes inside this box, given by two opposite corners [[x0, y0, z0], [x1, y1, "
+                   "z1]].", default=None, unit="m"),
+        "curve": Key("points", "The nodes within `tolerance` of this polyline.", default=None, unit="m"),
+        "tolerance": Key("float", "Distance from `curve` (default 1e-6 times the size of the net, at least "
+                         "1e-6 m).", default=None, unit="m", **_NONNEG),
         "z": Key("float", "Every node at this height (within z_tolerance).", default=None, unit="m"),
         "z_tolerance": Key("float", "Tolerance of z.", default=1.0e-6, unit="m", **_NONNEG),
-        "dofs": Key("str", "Fixed components, any of the letters x, y, z.", default="xyz"),
+        "dofs": Key("str", "Fixed components, any of the letters x, y, z; the others slide: 'z' on a horizontal "
+                    "plane, 'yz' along a line parallel to x.", default="xyz"),
     },
 )
 
@@ -363,6 +399,26 @@ SCENE = Table(
                 "strain_limit": Key("float", "Net ropes strained beyond this at rest are named in a warning and "
                                     "counted in the summary (n_overstretched_ropes): the shape there depends on EA.",
                                     default=0.01, **_POS),
+            },
+        ),
+        "cables": Table(
+            array=True,
+            doc="Edge cables of a hanging net (form finding): the boundary edges whose two ends are among the "
+                "nodes an entry names (as [[supports]] names them) are a rope group of their own, with its own "
+                "axial stiffness, slack and mass, instead of net ropes.",
+            keys={
+                "name": Key("str", "Group name (default cable_0, cable_1, ...).", default=""),
+                "nodes": Key("index_list", "Node numbers.", default=None),
+                "groups": Key("str_list", "Named node sets of the net (see [[supports]] groups).", default=None),
+                "near": Key("points", "The node nearest to each of these points.", default=None, unit="m"),
+                "box": Key("points", "The nodes inside this box (two opposite corners).", default=None, unit="m"),
+                "curve": Key("points", "The nodes within `tolerance` of this polyline.", default=None, unit="m"),
+                "tolerance": Key("float", "Distance from `curve`.", default=None, unit="m", **_NONNEG),
+                "EA": Key("float", "Axial stiffness of the cable.", unit="N", **_POS),
+                "slack": Key("float", "Slack coefficient: rest length = (1 + slack) x planform edge length.",
+                             default=0.0, minimum=-1.0, exclusive_minimum=True, maximum=MAX_SLACK),
+                "mass_per_length": Key("float", "Cable mass (default the ropes').", default=None, unit="kg/m",
+                                       **_NONNEG),
             },
         ),
         "rods": Table(

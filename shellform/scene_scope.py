@@ -13,7 +13,8 @@ _TABLE_SCOPE = {
     "prescribed": (BAR_ROPE, "[nodes] and mesh-file scenes"),
     "loads": (BAR_ROPE, "[nodes] and mesh-file scenes"),
     "effects": (BAR_ROPE, "[nodes] and mesh-file scenes"),
-    "ropes": (FORM_FINDING, "form finding on a planform grid"),
+    "ropes": (FORM_FINDING, "form finding"),
+    "cables": (FORM_FINDING, "form finding"),
     "rods": (("indentation", "form_and_buckle"), "the hemisphere and form_and_buckle"),
     "masses": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding"),
     "supports": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding (the hemisphere's rod ends are "

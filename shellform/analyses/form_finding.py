@@ -47,6 +47,9 @@ Progress = Callable[[str], None]
 
 def grid_lines(grid) -> list[np.ndarray]:
     """Node chains of every grid line of a structured quad grid (both families)."""
+    if not grid.structured:
+        raise SceneError("geometry", "rods along grid lines need a structured grid (rectangle, ellipse, disk, "
+                         "bspline, or a four-sided planform meshed as quads); this net is unstructured")
     index = grid.index()
     lines = []
     for family in (index, index.T):
@@ -62,7 +65,7 @@ NET_PARTS = ("geometry", "supports", "ropes", "masses", "loads")
 
 def _fingerprint(params: dict) -> str:
     """What a saved state depends on: a hash of each part of the net (JSON text)."""
-    net = {k: params[k] for k in NET_PARTS}
+    net = {k: params[k] for k in NET_PARTS + ("cables",) if k in params}
     # the strain limit only decides which ropes a report names
     net["ropes"] = {k: v for k, v in net["ropes"].items() if k != "strain_limit"}
     return json.dumps({k: hashlib.sha256(json.dumps(v, sort_keys=True, default=str).encode()).hexdigest()[:16]
@@ -143,12 +146,12 @@ def _resume_state(checkpoint: RelaxationCheckpoint, params: dict, resume: bool, 
 
 def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, q0: np.ndarray | None = None,
                  v0: np.ndarray | None = None, callback=None, export=None,
-                 summary_file: str | None = "summary.json") -> dict:
+                 summary_file: str | None = "summary.json", grid=None) -> dict:
     """Form-find one case and write its results.
 
     Parameters
     ----------
-    params, progress, q0, v0, callback
+    params, progress, q0, v0, callback, grid
         See :func:`shellform.mra.solve_mra_case`.
     out_dir : path-like
         Directory for ``hanging.vtu``, ``inverted.vtu`` and ``summary.json``.
@@ -170,7 +173,7 @@ def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, q0:
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    case = solve_mra_case(params, progress, q0=q0, v0=v0, callback=callback)
+    case = solve_mra_case(params, progress, q0=q0, v0=v0, callback=callback, grid=grid)
     files = []
     if case.meshes:
         files += write_net_meshes(out, case.result, case.inverted)
@@ -201,8 +204,9 @@ def export_form(scene: dict, res, inv, out: Path) -> list[str]:
     support = np.zeros(net.structure.n_nodes)
     support[net.supports] = 1.0
     height = inv.positions[:, 2] - inv.plane_z
-    if scene["output"]["meshes"]:
-        write_surface(out / "inverted_shell.vtu", inv.positions, net.grid.quads,
+    faces = net.grid.faces
+    if scene["output"]["meshes"] and len(faces) == 1:
+        write_surface(out / "inverted_shell.vtu", inv.positions, next(iter(faces.values())),
                       {"support": support, "height": height})
         files.append("inverted_shell.vtu")
     if "3dm" in scene["output"]["formats"]:
@@ -213,8 +217,9 @@ def export_form(scene: dict, res, inv, out: Path) -> list[str]:
         classes = tolerance_classes(res.length, scene["analysis"]["lengths"]["tolerance"])
         write_3dm(out / "form.3dm",
                   lines={"hanging net": (res.positions, net.rope_edges), "inverted net": (x, net.rope_edges)},
-                  polylines={"centrelines": [x[c] for c in grid_lines(net.grid)]},
-                  meshes={"inverted shell": (x, net.grid.quads)},
+                  polylines={"centrelines": [x[c] for c in grid_lines(net.grid)] if net.grid.structured else []},
+                  meshes={"inverted shell": (x, np.concatenate([f[:, [0, 1, 2, 2]] if f.shape[1] == 3 else f
+                                                                for f in faces.values()]))} if faces else {},
                   line_text={"hanging net": {"axial_force [N]": res.tension, "slack [-]": res.slack,
                                              "length [m]": res.length, "length_class [-]": classes},
                              "inverted net": {"axial_force [N]": inv.force, "length [m]": res.length,
@@ -225,9 +230,17 @@ def export_form(scene: dict, res, inv, out: Path) -> list[str]:
 
 def _find_form(scene: dict, out: Path, progress: Progress, resume: bool, keep: dict | None = None) -> dict:
     """Run the form finding with checkpoints and exports; ``keep`` receives the result objects."""
+    from ..geometry.meshnet import mesh_net
     from ..scene import mra_params
 
     params = mra_params(scene)
+    grid = None
+    if scene["source"] == "file":
+        m = scene["mesh"]
+        try:
+            grid = mesh_net(m.points, m.cells, m.point_sets)
+        except ModelError as exc:
+            raise SceneError("geometry.file", str(exc)) from None
     checkpoint = RelaxationCheckpoint(out / RELAXATION_CHECKPOINT,
                                       scene["analysis"]["relaxation"]["checkpoint_interval"], _fingerprint(params))
     q0, v0 = _resume_state(checkpoint, params, resume, progress)
@@ -242,7 +255,7 @@ def _find_form(scene: dict, out: Path, progress: Progress, resume: bool, keep: d
     try:
         # the caller writes summary.json, with the stages of the whole run
         summary = run_mra_case(params, out, progress, q0=q0, v0=v0, callback=checkpoint, export=export,
-                               summary_file=None)
+                               summary_file=None, grid=grid)
     except ModelError as exc:
         # the net could not be built or held: name the part of the scene that describes it
         text = str(exc)
