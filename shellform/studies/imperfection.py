@@ -184,7 +184,10 @@ class StudyTable:
 
 
 def _fingerprint(raw: dict, base_dir: str, settings: StudySettings) -> str:
-    return digest({"scene": raw, "base_dir": base_dir}, _settings_record(settings))
+    """The scene without its ``[study]`` and the settings that change a sample's answer (not the amplitudes,
+    counts or fractile: a sample is named by its own amplitude and draw)."""
+    scene = {k: v for k, v in raw.items() if k != "study"}
+    return digest({"scene": scene, "base_dir": base_dir}, _settings_record(settings))
 
 
 def _sample_key(fingerprint: str, s: sh.Sample) -> str:
@@ -254,7 +257,7 @@ def run_imperfection_study(scene_path, out_dir, options: StudyOptions | None = N
         summary = summarise(table.ordered, settings, perfect, scene)
         summary["kept"] = kept
         summary["files"] = _figures(out, summary, table.ordered, settings, perfect, scene, progress)
-        summary["worst"] = _worst(out, scene, settings, shapes, samples, table, progress)
+        summary["worst"] = _worst(out, scene, settings, shapes, samples, table, fingerprint, progress)
         if summary["worst"]:
             summary["files"].append("worst/")
         summary["wall_time_s"] = time.perf_counter() - t0
@@ -365,8 +368,11 @@ def _figures(out: Path, summary: dict, rows: list[dict], settings: StudySettings
 
 
 def _worst(out: Path, scene: dict, settings: StudySettings, shapes: Shapes, samples: list, table: StudyTable,
-           progress: Progress) -> dict | None:
-    """Trace the whole path of the sample with the lowest critical load factor into ``worst/``."""
+           fingerprint: str, progress: Progress) -> dict | None:
+    """Trace the whole path of the sample with the lowest critical load factor into ``worst/``.
+
+    A ``worst/`` of the same sample, written by an earlier run of the study, is kept.
+    """
     from ..analyses.continuation import trace_model
     from ..progress import Status, indented
 
@@ -376,13 +382,20 @@ def _worst(out: Path, scene: dict, settings: StudySettings, shapes: Shapes, samp
     _, index = min(rows)
     s = samples[index]
     folder = output_folder(out / "worst")
+    worst = {"sample": s.name, "shape": s.shape, "sign": s.sign, "amplitude": s.amplitude,
+             "lam_cr": table.rows[index]["lam_cr"], "knockdown": table.rows[index]["knockdown"],
+             "key": _sample_key(fingerprint, s)}
+    try:
+        if json.loads((folder / "summary.json").read_text()).get("sample", {}).get("key") == worst["key"]:
+            progress(f"worst sample {s.name}: its path in {folder} from before")
+            return worst
+    except (OSError, ValueError, AttributeError):
+        pass
     progress(f"worst sample {s.name} ({s.shape}, sign {s.sign:+d}, amplitude {s.amplitude:g}): its path into "
              f"{folder}")
     model = imperfect_model(scene, shapes.delta(s))
     lines = lambda msg: None if isinstance(msg, Status) else progress(msg)  # noqa: E731 (no step lines)
     summary = trace_model(scene, model, folder, indented(lines), resume=False,
                           max_angle_deg=settings.max_step_angle)
-    worst = {"sample": s.name, "shape": s.shape, "sign": s.sign, "amplitude": s.amplitude,
-             "lam_cr": table.rows[index]["lam_cr"], "knockdown": table.rows[index]["knockdown"]}
     write_json(folder / "summary.json", {"title": scene["title"], "sample": worst, **summary})
     return worst

@@ -45,7 +45,7 @@ ASYMMETRIC = {"L": 1.0, "EA": 100.0, "S": 1.0, "k": 1.0, "alpha": np.pi / 4}
 MODELS = {"symmetric": SYMMETRIC, "asymmetric": ASYMMETRIC}
 
 
-def link_scene(kind: str, study: str = "", parameter_max: float = 2.0) -> str:
+def link_scene(kind: str, study: str = "", parameter_max: float = 2.0, max_steps: int = 400) -> str:
     """The TOML scene of a link model (``kind`` symmetric or asymmetric), with ``study`` as its ``[study]`` body."""
     m = MODELS[kind]
     c = (-float(m["S"] * np.cos(m["alpha"])), 0.0, -float(m["S"] * np.sin(m["alpha"])))
@@ -78,7 +78,7 @@ force = [0.0, 0.0, -1.0]
 type = "continuation"
 [analysis.continuation]
 parameter_max = {parameter_max!r}
-max_steps = 2000
+max_steps = {max_steps}
 initial_increment = 0.01
 """
     return text + (f"[study]\n{study}\n" if study else "")
