@@ -289,3 +289,47 @@ def test_stop_at_bifurcation():
     res = trace_path(system, "load", initial_increment=Pl / 10, on_bifurcation="stop", max_steps=50)
     assert res.status == "event" and res.success
     assert len(res.events) == 1 and res.events[0].kind == "bifurcation"
+
+
+@pytest.mark.parametrize("rtol", [1e-3, 1e-6, 1e-9])
+def test_critical_loads_located_to_the_requested_tolerance(rtol):
+    """Both limit points of the von Mises truss and the braced truss's bifurcation point are located
+    to ``critical_rtol`` on the critical load (the limit loads here in closed form; the corrector
+    converges to 1e-10 of the forces, which bounds what can be asked)."""
+    system = von_mises("load")
+    res = trace_path(system, "load", initial_increment=P_CR / 7, max_steps=200, critical_rtol=rtol,
+                     callback=lambda pt: pt.q[5] < -1.2 * H)
+    upper, lower = res.events_of("limit")
+    assert upper.located and lower.located
+    assert abs(upper.parameter - P_CR) <= rtol * P_CR
+    assert abs(lower.parameter + P_CR) <= rtol * P_CR
+    (Pb, _), _ = braced_critical()
+    res = trace_path(braced_truss(), "load", initial_increment=Pb / 7, max_steps=100, max_displacement=2.2 * H,
+                     critical_rtol=rtol)
+    bif = res.events_of("bifurcation")[0]
+    assert bif.located and abs(bif.parameter - Pb) <= rtol * Pb
+    if rtol >= 1e-6:  # tighter, the bracket ends at locate_tol (1e-8 of the step) first
+        assert bif.bracket <= rtol * Pb * 1.0001
+
+
+def test_critical_point_located_in_fewer_trials_than_bisection():
+    """A bisection to 1e-8 of the step takes 27 corrected points per event; the secant a handful."""
+    import shellform.solvers.continuation.events as events
+
+    trials = []
+    probe = events._probe
+
+    def counted(*args):
+        trials.append(1)
+        return probe(*args)
+
+    events._probe = counted
+    try:
+        (Pb, _), _ = braced_critical()
+        res = trace_path(braced_truss(), "load", initial_increment=Pb / 7, max_steps=100,
+                         max_displacement=2.2 * H)
+    finally:
+        events._probe = probe
+    n_events = len(res.events)
+    assert n_events >= 3 and all(e.located for e in res.events)
+    assert len(trials) <= 8 * n_events

@@ -154,3 +154,17 @@ def test_bad_time_step_is_reported():
     system = build_system(oscillator())
     with pytest.raises(ModelError, match="time step"):
         implicit_euler(system, -0.1, 1.0)
+
+
+def test_a_step_that_meets_its_tolerance_assembles_no_tangent():
+    """One tangent per Newton iteration, and none to find that the last one converged."""
+    s = oscillator()
+    system = build_system(s)
+    calls = []
+    tangent_free = system.tangent_free
+    system.tangent_free = lambda q: calls.append(1) or tangent_free(q)
+    q0 = s.reference_state()
+    q0[3] += 0.3
+    res = implicit_euler(system, 0.01, 0.5, q0=q0, damping=0.5)
+    assert res.success and res.rejected_steps == 0
+    assert len(calls) == sum(max(k, 1) for k in res.newton_iterations)

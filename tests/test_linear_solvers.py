@@ -150,3 +150,80 @@ def test_cholesky_names_a_row_without_a_diagonal_entry():
     A.eliminate_zeros()
     with pytest.raises(SingularMatrixError, match="row 5 has no diagonal entry"):
         CholeskyFactor(A)
+
+
+def test_a_freed_ldl_factor_lends_its_analysis_to_the_next_of_the_same_pattern():
+    """The second factorisation of a pattern takes the first's ordering and symbolic analysis once
+    the first is freed, and gives the same factor as a fresh analysis."""
+    from shellform.solvers import linear
+
+    rng = np.random.default_rng(3)
+    A = laplacian_3d(40)
+    B = sp.csr_matrix((A.data * rng.uniform(0.5, 1.5, A.nnz), A.indices, A.indptr), shape=A.shape)
+    B = sp.csr_matrix(0.5 * (B + B.T))
+    linear._POOL.clear()
+    fresh = LDLFactor(B)
+    d_fresh, x_fresh = fresh.d.copy(), fresh.solve(np.ones(B.shape[0]))
+    del fresh
+    assert len(linear._POOL._items) == 1
+    F = LDLFactor(A)  # same pattern: takes the pooled analysis
+    assert len(linear._POOL._items) == 0
+    del F
+    G = LDLFactor(B)
+    assert np.array_equal(G.d, d_fresh)
+    assert np.array_equal(G.solve(np.ones(B.shape[0])), x_fresh)
+    # another pattern does not take it
+    del G
+    C = laplacian_3d(41)
+    H = LDLFactor(C)
+    assert len(linear._POOL._items) == 1 and H.inertia == (0, 0, C.shape[0])
+
+
+def test_diagonal_shift_keeps_the_pattern_with_its_explicit_zeros():
+    from shellform.solvers.linear import shift_diagonal
+
+    A = laplacian_3d(10)
+    A.data[A.data == -1.0] = 0.0  # off-diagonal entries stored as explicit zeros (slack ropes)
+    zeros = np.count_nonzero(A.data == 0.0)
+    assert zeros > 0
+    for sigma in (0.3, np.linspace(1.0, 2.0, A.shape[0])):
+        B = shift_diagonal(A, sigma)
+        assert np.array_equal(B.indptr, A.indptr) and np.array_equal(B.indices, A.indices)
+        assert abs(B - (A + sp.diags(np.broadcast_to(sigma, (A.shape[0],))))).max() == 0.0
+        assert np.count_nonzero(B.data == 0.0) == zeros
+
+
+def test_dense_eigenvalues_run_on_one_blas_thread_inside_the_block_only():
+    from threadpoolctl import threadpool_info
+
+    from shellform.solvers.linear import single_threaded
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    before = blas_threads()
+    with single_threaded():
+        assert all(n == 1 for n in blas_threads())
+    assert blas_threads() == before
+
+
+def test_system_pattern_is_the_sorted_set_of_its_triplets():
+    """The CSR pattern (and each triplet's slot in it) that every factorisation of a System works on,
+    against a comparison sort of the triplets' keys; duplicates, empty rows and an unsorted input."""
+    from shellform.assembly import _Pattern
+
+    rng = np.random.default_rng(7)
+    n_rows, n_cols = 57, 41
+    rows = rng.integers(0, n_rows - 3, 2000)  # the last rows stay empty
+    cols = rng.integers(0, n_cols, 2000)
+    P = _Pattern(rows, cols, (n_rows, n_cols))
+    key = rows * n_cols + cols
+    unique, slot = np.unique(key, return_inverse=True)
+    assert P.nnz == unique.size
+    assert np.array_equal(P.slot, slot)
+    assert np.array_equal(P.indices, unique % n_cols)
+    assert np.array_equal(P.indptr, np.concatenate([[0], np.cumsum(np.bincount(unique // n_cols, minlength=n_rows))]))
+    vals = rng.standard_normal(rows.size)
+    dense = np.zeros((n_rows, n_cols))
+    np.add.at(dense, (rows, cols), vals)
+    assert np.allclose(P.matrix(vals).toarray(), dense, rtol=0, atol=1e-13)
