@@ -19,6 +19,8 @@ def default_effects(scene: dict) -> list[str]:
         names.append("axial")
     if "rope" in kinds:
         names.append("rope")
+    if scene.get("rods") is not None:
+        names.append("rods")
     if scene["loads"]:
         names.append("loads")
     if scene["gravity"] is not None:
@@ -40,18 +42,47 @@ def random_forces(structure: Structure, amplitude: float, seed: int) -> np.ndarr
     return f
 
 
-def scene_system(scene: dict, structure: Structure) -> System:
-    """A System with exactly the effects the scene lists (or calls for)."""
+def _member_effects(structure: Structure) -> list:
+    """The bar and rope effects of a structure; rods have theirs in their network."""
+    if not any(g.kind == "rod" for g in structure.groups):
+        return member_effects(structure)
+    from .assembly import AxialBar, Rope
+
+    kinds = {"bar": AxialBar, "rope": Rope}
+    effects = []
+    for g in structure.groups:
+        if g.kind in kinds:
+            e = kinds[g.kind](structure.n_dof, g.connectivity, g.EA, g.rest_length)
+            e.label = g.name
+            effects.append(e)
+    return effects
+
+
+def scene_system(scene: dict, structure: Structure, network=None) -> System:
+    """A System with exactly the effects the scene lists (or calls for).
+
+    ``network`` is the scene's RodNetwork
+    (:func:`~shellform.scene_structure.build_structure_and_rods`), required
+    when the scene has rods.
+    """
     from .effects.loads import ConstantForce
+    from .scene_rods import has_rods
 
     include = (scene["effects"] or {}).get("include") or default_effects(scene)
     effects = []
     kind_of = {"axial": "bar", "rope": "rope"}
-    for e in member_effects(structure):
+    for e in _member_effects(structure):
         group = structure.group(e.label)
         wanted = [k for k, v in kind_of.items() if v == group.kind][0]
         if wanted in include:
             effects.append(e)
+    if has_rods(scene):
+        if network is None:
+            raise SceneError("rods", "a scene with rods builds its system from its rod network: use build_model")
+        if "rods" in include:
+            effects += network.effects()
+    elif "rods" in include:
+        raise SceneError("effects.include", "lists 'rods' but the scene has no [rods] table")
     if "loads" in include:
         effects += nodal_load_effects(structure)
     if "gravity" in include:
@@ -66,4 +97,6 @@ def scene_system(scene: dict, structure: Structure) -> System:
         f = random_forces(structure, imp["amplitude"], imp["seed"])
         effects.append(ConstantForce(f, scales_with_load=False, name="imperfection"))
     with scene_error_at("supports"):
-        return System(structure, effects)
+        if network is not None:
+            network.check_supports()  # the structure's check, counting the penalty joints too
+        return System(structure, effects, check=network is None)

@@ -11,7 +11,7 @@ from .mra.formfind import COARSE_START_NODES
 from .schema import Key, Table
 from .solvers.relaxation.options import Refinements, RelaxationOptions
 
-EFFECTS = ("axial", "rope", "loads", "gravity", "imperfection")
+EFFECTS = ("axial", "rope", "rods", "loads", "gravity", "imperfection")
 #: structured grids (rectangle, ellipse, disk, bspline) and gmsh planforms of any shape (polygon, curves, surface)
 PLANFORMS = ("rectangle", "ellipse", "disk", "bspline", "polygon", "curves", "surface")
 MESHED_PLANFORMS = ("polygon", "curves", "surface")
@@ -48,8 +48,7 @@ GEOMETRY = Table(
     keys={
         "type": Key("str", "Geometry source.", choices=GEOMETRIES),
         "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...) or a Rhino file (.3dm), relative to "
-                    "the scene file (type 'surface': a STEP, IGES or BREP file of surfaces, meshed by gmsh). Line "
-                    "cells become members, and so do the edges of triangle and quad cells (each "
+                    "the scene file (type 'surface': a STEP, IGES or BREP file of surfaces, meshed by gmsh). Line cells become members, and so do the edges of triangle and quad cells (each "
                     "once). Of a Rhino file: curves are chains of lines, meshes triangles and quads, points nodes of "
                     "the named set of their layer; every layer is a named node set (docs/rhino.md).",
                     default=None, only=("file", "surface"), required_for=("file", "surface"), max_length=1000),
@@ -422,22 +421,68 @@ SCENE = Table(
             },
         ),
         "rods": Table(
-            doc="Solid circular discrete elastic rods: the hemisphere's (defaults: the paper's 1 mm radius, "
-                "E = 100 GPa, G = E/3, 1000 kg/m^3) and those of the gridshell built on a found form "
-                "(defaults: 20 mm radius, E = 210 GPa, G = E/2.6, weightless: the net's weight is the load).",
+            doc="Discrete elastic rods: their section and material, where they run and how they meet. The "
+                "hemisphere's rods (defaults: the paper's 1 mm radius, E = 100 GPa, G = E/3, 1000 kg/m^3) and those "
+                "of the gridshell built on a found form (defaults: 20 mm radius, E = 210 GPa, G = E/2.6, weightless: "
+                "the net's weight is the load) are solid circles; the rods of a [nodes] or mesh-file scene (static, "
+                "continuation, dynamics) run along [[rods.lines]] or the mesh's edge chains (layout), with any "
+                "section. A rod's section lies in the plane of its material directors m1, m2; EI1 is the stiffness "
+                "of the rod turning towards m1, EI2 towards m2.",
             keys={
-                "E": Key("float", "Young's modulus (default above).", default=None, unit="Pa", **_POS),
-                "G": Key("float", "Shear modulus (default above).", default=None, unit="Pa", **_POS),
-                "radius": Key("float", "Radius of the section (default above).", default=None, unit="m", **_POS),
-                "density": Key("float", "Density of the rods (default above).", default=None, unit="kg/m^3", **_NONNEG),
-                "rest_shape": Key("str", "form_and_buckle: rods straight when unstressed (bent into the form, the "
-                                  "prestress relaxed first) or stress-free in the found shape.", default="straight",
+                "E": Key("float", "Young's modulus (default above; required for the rods of a [nodes] or mesh-file "
+                         "scene).", default=None, unit="Pa", **_POS),
+                "G": Key("float", "Shear modulus (default above; E/2.6 for the rods of a [nodes] or mesh-file "
+                         "scene).", default=None, unit="Pa", **_POS),
+                "density": Key("float", "Density of the rods (default above; 0 for the rods of a [nodes] or "
+                               "mesh-file scene): their self-weight under [gravity] and their inertia.", default=None,
+                               unit="kg/m^3", **_NONNEG),
+                "section": Key("str", "Shape of the section: solid circle (radius), tube (radius, thickness) or "
+                               "rectangle (depth along m1, width along m2). Its area, second moments, torsion "
+                               "constant (Saint-Venant's series for the rectangle) and extreme fibres are computed; "
+                               "the rods' results then include max_stress.", default="circle",
+                               choices=("circle", "hollow_circle", "rectangle")),
+                "radius": Key("float", "Radius of a circle, outer radius of a tube (default above).", default=None,
+                              unit="m", **_POS),
+                "thickness": Key("float", "Wall thickness of a tube.", default=None, unit="m", **_POS),
+                "depth": Key("float", "Rectangle: side along m1 (with orientation 'surface', across the surface: the "
+                             "thickness of a lath lying on it).", default=None, unit="m", **_POS),
+                "width": Key("float", "Rectangle: side along m2 (in the surface).", default=None, unit="m", **_POS),
+                "orientation": Key("str", "First director m1 of every rod edge: the surface normal of the mesh's "
+                                   "faces at the edge ('surface', the default where the mesh has faces), or the "
+                                   "vertical projected perpendicular to a rod's first edge (x if it is vertical), "
+                                   "carried along the rod by parallel transport ('vertical').",
+                                   default=None, choices=("surface", "vertical")),
+                "layout": Key("str", "Where the rods of a [nodes] or mesh-file scene run: along [[rods.lines]] "
+                              "('lines', the default when they are given) or along the edge chains of the mesh's "
+                              "quads and lines ('mesh_lines': a chain goes straight on through every node where it "
+                              "has exactly one edge that shares no face with it, and ends elsewhere).",
+                              default=None, choices=("lines", "mesh_lines")),
+                "lines": Table(
+                    array=True,
+                    doc="One rod each, through the given nodes in order (a [nodes] or mesh-file scene).",
+                    keys={
+                        "nodes": Key("index_list", "Node numbers along the rod (at least 2; 3 when closed)."),
+                        "closed": Key("bool", "The last node joins back to the first (a ring).", default=False),
+                        "name": Key("str", "Rod name (default rod<k>).", default=""),
+                    },
+                ),
+                "rest_shape": Key("str", "Rods straight and untwisted when unstressed (bent into the geometry; "
+                                  "form_and_buckle relaxes that prestress first, a rod scene starts from it) or "
+                                  "stress-free in the geometry as found or given. Default: straight for "
+                                  "form_and_buckle, found for a rod scene.", default=None,
                                   choices=("straight", "found")),
-                "joints": Key("str", "hemisphere: rods tied at a joint by a penalty spring between two nodes (the "
-                              "paper's Eq. 3), or sharing one node.", default="penalty",
+                "joints": Key("str", "Where rods cross at a node: tied by a penalty spring between two nodes (the "
+                              "paper's Eq. 3; of a [nodes] or mesh-file scene, every rod after the first through "
+                              "a node gets its own copy of it, tied to the first), or sharing one node. Default: "
+                              "penalty for the hemisphere, shared for a rod scene.", default=None,
                               choices=("penalty", "shared")),
-                "joint_stiffness_ratio": Key("float", "hemisphere: penalty stiffness over the rods' axial "
-                                             "stiffness at the joint.", default=1.0e3, **_POS),
+                "joint_stiffness_ratio": Key("float", "Penalty stiffness over the rods' axial stiffness at the "
+                                             "joint (default 1e3).", default=1.0e3, **_POS),
+                "support_rotation": Key("str", "Rods at a supported node of a [nodes] or mesh-file scene: "
+                                        "'free' to turn about it (the twist of their edges that touch it held, so "
+                                        "that they cannot spin), or 'clamped' (both nodes of every rod edge that "
+                                        "touches a support fixed like the support, and its twist held).",
+                                        default="free", choices=("free", "clamped")),
             },
         ),
         "masses": Table(

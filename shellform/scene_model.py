@@ -10,7 +10,7 @@ from .assembly import System
 from .errors import SceneError
 from .model import Structure
 from .scene_effects import scene_system
-from .scene_structure import build_structure, scene_start_state
+from .scene_structure import build_structure_and_rods, reference_nodes, scene_start_state
 
 
 @dataclass
@@ -23,11 +23,14 @@ class Model:
     system : System
     imperfection : dict
         What was applied (JSON-ready; empty without an imperfection).
+    network : RodNetwork or None
+        The scene's rods (their twist inertia, reference frames and layout).
     """
 
     structure: Structure
     system: System
     imperfection: dict = field(default_factory=dict)
+    network: object = None
 
 
 def _scaled(delta: np.ndarray, amplitude: float, where: str) -> np.ndarray:
@@ -59,12 +62,12 @@ def _mode_shape(scene: dict, structure: Structure, system: System) -> tuple[np.n
 
 def build_model(scene: dict) -> Model:
     """Structure and System of a bar/rope scene, with its imperfection applied."""
-    structure = build_structure(scene)
-    system = scene_system(scene, structure)
+    structure, network = build_structure_and_rods(scene)
+    system = scene_system(scene, structure, network)
     imp = scene["imperfection"]
     if imp is None or imp["type"] == "forces":
         note = {} if imp is None else {"type": "forces", "amplitude_N": imp["amplitude"], "seed": imp["seed"]}
-        return Model(structure, system, note)
+        return Model(structure, system, note, network)
     nodes = structure.nodes
     free = ~structure.constrained_mask[: 3 * structure.n_nodes].reshape(-1, 3)
     if imp["type"] == "random":
@@ -75,5 +78,6 @@ def build_model(scene: dict) -> Model:
         note = {"type": "mode", "eigenvalue": value, "load_factor": imp["load_factor"]}
     delta = _scaled(delta, imp["amplitude"], "imperfection.amplitude")
     note.update(amplitude_m=imp["amplitude"], max_node_movement_m=float(np.linalg.norm(delta, axis=1).max()))
-    structure = build_structure(scene, nodes + delta)
-    return Model(structure, scene_system(scene, structure), note)
+    # the scene's own nodes move; copies of penalty-joint nodes follow theirs
+    structure, network = build_structure_and_rods(scene, (nodes + delta)[: len(reference_nodes(scene))])
+    return Model(structure, scene_system(scene, structure, network), note, network)

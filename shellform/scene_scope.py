@@ -15,15 +15,17 @@ _TABLE_SCOPE = {
     "effects": (BAR_ROPE, "[nodes] and mesh-file scenes"),
     "ropes": (FORM_FINDING, "form finding"),
     "cables": (FORM_FINDING, "form finding"),
-    "rods": (("indentation", "form_and_buckle"), "the hemisphere and form_and_buckle"),
+    "rods": (BAR_ROPE + ("indentation", "form_and_buckle"), "rod scenes, the hemisphere and form_and_buckle"),
     "masses": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding"),
     "supports": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding (the hemisphere's rod ends are "
                                           "pinned on its equator)"),
     "gravity": (BAR_ROPE + FORM_FINDING, "bar/rope structures and form finding"),
     "imperfection": (BAR_ROPE + ("indentation",), "bar/rope structures and the hemisphere"),
 }
-_ROD_SCOPE = {"rest_shape": ("form_and_buckle",), "joints": ("indentation",),
-              "joint_stiffness_ratio": ("indentation",)}
+_ROD_SCOPE = {"rest_shape": ("form_and_buckle",) + BAR_ROPE, "joints": ("indentation",) + BAR_ROPE,
+              "joint_stiffness_ratio": ("indentation",) + BAR_ROPE,
+              **{k: ("form_and_buckle",) + BAR_ROPE for k in ("section", "thickness", "depth", "width")},
+              **{k: BAR_ROPE for k in ("layout", "lines", "orientation", "support_rotation")}}
 _ANALYSIS_SCOPE = {
     "load_factor": BAR_ROPE, "prescribed": BAR_ROPE, "start": BAR_ROPE,
     "merit": ("static",), "max_iterations": ("static",), "rtol": ("static", "continuation"),

@@ -1,4 +1,4 @@
-"""The Structure of a bar/rope scene: nodes, member groups, supports, loads and its start state."""
+"""The Structure of a bar/rope scene: nodes, member groups, rods, supports, loads and its start state."""
 
 from __future__ import annotations
 
@@ -67,11 +67,27 @@ def scene_support_nodes(scene: dict, nodes: np.ndarray) -> list[np.ndarray]:
 
 
 def build_structure(scene: dict, nodes: np.ndarray | None = None) -> Structure:
-    """The Structure a validated bar/rope scene describes (``nodes`` overrides its coordinates)."""
+    """The Structure a validated bar/rope scene describes (``nodes`` overrides its coordinates).
+
+    A scene with rods needs their network too: :func:`build_structure_and_rods`.
+    """
+    return build_structure_and_rods(scene, nodes)[0]
+
+
+def build_structure_and_rods(scene: dict, nodes: np.ndarray | None = None):
+    """The Structure of a validated bar/rope scene and its RodNetwork (None without ``[rods]``).
+
+    ``nodes`` overrides the scene's node coordinates (the scene's own nodes;
+    the copies of penalty joints follow their nodes).
+    """
+    from .scene_rods import add_scene_rods, has_rods, rod_layout
+
     nodes = reference_nodes(scene) if nodes is None else nodes
+    layout = rod_layout(scene, nodes) if has_rods(scene) else None
     where = "geometry.file" if scene["source"] == "file" else "nodes.coordinates"
     with scene_error_at(where):
-        s = Structure(nodes)
+        s = Structure(nodes if layout is None or not len(layout.copies)
+                      else np.concatenate([nodes, np.asarray(nodes)[layout.copies]]))
     for i, (m, conn) in enumerate(zip(scene["members"], member_connectivity(scene))):
         name = m["name"] or f"{m['kind']}s{i}"
         for k in ("EA", "mass_per_length", "slack", "rest_length"):
@@ -84,7 +100,7 @@ def build_structure(scene: dict, nodes: np.ndarray | None = None) -> Structure:
             else:
                 s.add_ropes(conn, m["EA"], m["slack"], m["mass_per_length"], m["rest_length"], name=name)
     if scene["masses"] is not None and scene["masses"]["node_mass"] > 0:
-        s.add_point_mass(np.arange(s.n_nodes), scene["masses"]["node_mass"])
+        s.add_point_mass(np.arange(len(nodes)), scene["masses"]["node_mass"])  # not on joint copies
     for i, (sup, at) in enumerate(zip(scene["supports"], scene_support_nodes(scene, np.asarray(nodes)))):
         with scene_error_at(support_key(scene, i)):
             s.fix(at, sup["dofs"])
@@ -96,7 +112,8 @@ def build_structure(scene: dict, nodes: np.ndarray | None = None) -> Structure:
             s.add_load(load["nodes"], load["force"], scaled=load["scaled"])
     if scene["gravity"] is not None:
         s.set_gravity(scene["gravity"]["g"])
-    return s
+    network = add_scene_rods(scene, s, layout) if layout is not None else None
+    return s, network
 
 
 def scene_start_state(scene: dict, structure: Structure):

@@ -94,7 +94,7 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
     model = build_scene_model(scene, progress)
     structure, system = model.structure, model.system
     a, d = scene["analysis"], scene["analysis"]["dynamics"]
-    mass = lumped_mass(structure)
+    mass = lumped_mass(structure, model.network)  # rods: their twist inertia on the twist angles
     if not np.any(mass[system.free] > 0):
         raise SceneError("members", "time stepping needs mass at the free nodes: give the members a "
                          "mass_per_length or [masses] node_mass")

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..io.summary import RunRecord
 from ..model import Structure
-from ..rods.section import RestShape, RodSection, circular_section
+from ..rods.section import RestShape, RodSection
 from .form_finding import ROD_DEFAULTS, Progress, _find_form, grid_lines
 
 
@@ -49,14 +49,19 @@ def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | Non
 
 
 def _section(scene: dict) -> dict:
+    """The rods' section (any shape of ``[rods]``; by default the solid circle of ROD_DEFAULTS) and rest shape."""
+    from ..scene_rods import scene_section
+
     rods = scene["rods"] or {}
-    value = {k: (rods.get(k) if rods.get(k) is not None else d) for k, d in ROD_DEFAULTS.items()}
-    E = value["E"]
+    E = rods.get("E") or ROD_DEFAULTS["E"]
     G = rods.get("G") or E / 2.6
-    section = circular_section(E=E, G=G, radius=value["radius"], density=value["density"])
-    rest = RestShape(natural_curvature="straight" if rods.get("rest_shape", "straight") == "straight" else "rest")
-    return {"section": section, "rest": rest, "E": E, "G": G, "radius": value["radius"],
-            "rest_shape": rods.get("rest_shape", "straight")}
+    section = scene_section(rods, {**ROD_DEFAULTS, "G": G})
+    rest_shape = rods.get("rest_shape") or "straight"
+    rest = RestShape(natural_curvature="straight" if rest_shape == "straight" else "rest")
+    described = {"section": rods.get("section") or "circle", "E": E, "G": G}
+    described.update({k: rods.get(k) or ROD_DEFAULTS.get(k) for k in ("radius", "thickness", "depth", "width")
+                      if rods.get(k) is not None or (k == "radius" and described["section"] != "rectangle")})
+    return {"section": section, "rest": rest, "E": E, "G": G, "described": described, "rest_shape": rest_shape}
 
 
 def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False,
@@ -149,7 +154,7 @@ def _buckle(scene: dict, out: Path, form, summary: dict, resume: bool, say) -> t
         "max_load_factor_traced": float(np.max(path["lam"])),
         "n_rods": len(network.rods),
         "n_free_dof": int(system.n_free),
-        "section": {"E": sec["E"], "G": sec["G"], "radius": sec["radius"]},
+        "section": sec["described"],
         "rest_shape": sec["rest_shape"],
     }
     summary["converged"] = bool(summary["converged"] and path.success)

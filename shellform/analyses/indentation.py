@@ -27,7 +27,7 @@ def hemisphere_model(scene: dict):
     return build_hemisphere(HemisphereSpec(
         g["n"], radius=g["radius"] or PAPER["radius"], voronoi_length=g["voronoi_length"],
         rod_radius=pick("radius", "rod_radius"), youngs_modulus=pick("E", "youngs_modulus"),
-        shear_modulus=rods["G"], density=pick("density", "density"), joints=rods["joints"],
+        shear_modulus=rods["G"], density=pick("density", "density"), joints=rods["joints"] or "penalty",
         stiffness_ratio=rods["joint_stiffness_ratio"],
     ))
 
