@@ -72,7 +72,9 @@ def test_mesh_file_dome_carries_its_load_and_weight(run):
     assert np.allclose(state.point_data["displacement"][rim], 0.0)
     assert np.all(np.abs(state.point_data["displacement"][~rim]).max(axis=1) > 0)
     model = rhino3dm.File3dm.Read(str(out / "state.3dm"))
-    assert [layer.Name for layer in model.Layers] == ["bars"] and len(model.Objects) == 90
+    layers = {layer.Index: layer.FullPath for layer in model.Layers}
+    on = [layers[o.Attributes.LayerIndex] for o in model.Objects]
+    assert on.count("members::bars") == 90 and on.count("supports") == int(rim.sum())
 
 
 def test_mode_imperfection_lowers_the_snap_load(run):
