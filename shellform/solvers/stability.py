@@ -305,6 +305,7 @@ def count_negative(K) -> int:
     joints against the twist of a slender rod), so a test on the pivot size
     alone would reject every factorisation. Otherwise :func:`inertia` decides.
     """
+    F = None
     try:
         F = LDLFactor(K)
         if F.backward_error() < 1e-11:
@@ -312,7 +313,7 @@ def count_negative(K) -> int:
     except SingularMatrixError:
         pass
     try:
-        return int(inertia(K).n_below_zero)
+        return int(inertia(K, factor=F).n_below_zero)  # the same factor, not a second one
     except InertiaError:
         return -1
 
@@ -342,12 +343,16 @@ def smallest_eigenpair(K) -> tuple[float, np.ndarray | None]:
     """
     try:
         lam, v, F = _eigsh_about(K, 0.0)
-        if F.n_negative_pivots == 0 or (lam < 0 and F.n_negative_pivots == 1):
+        negative = F.n_negative_pivots
+        del F  # freed, its analysis serves the shifted factorisations below
+        if negative == 0 or (lam < 0 and negative == 1):
             return lam, v
         sigma = -2.0 * abs(lam)
         for _ in range(40):
             G = LDLFactor(shift_diagonal(K, -sigma))
-            if G.n_negative_pivots == 0:
+            below = G.n_negative_pivots
+            del G
+            if below == 0:
                 lam, v, _ = _eigsh_about(K, sigma)
                 return lam, v
             sigma *= 4.0
