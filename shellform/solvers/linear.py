@@ -116,7 +116,7 @@ class _SymbolicPool:
     factorisations of the eigenvalue solves, implicit Euler's steps.
     """
 
-    #: solvers kept at most (each holds one factor's storage)
+    #: patterns kept at most, one solver each (each holds one factor's storage)
     size = 4
 
     def __init__(self):
@@ -131,6 +131,8 @@ class _SymbolicPool:
         return None
 
     def give(self, U: sp.csc_matrix, solver) -> None:
+        # one analysis per pattern is all a later factor needs: a second one is not kept
+        self.take(U)
         self._items.insert(0, (U.indptr, U.indices, solver))
         del self._items[self.size:]
 
