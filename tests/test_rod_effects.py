@@ -18,16 +18,19 @@ from shellform.rods.kinematics import (
 from shellform.rods import RestShape, RodNetwork, RodSection, build_rod_system, circular_section, stack_polylines
 
 
-def network_from(lines, closed=(), natural=None, twist=None, seed=0, **kw):
+def network_from(lines, closed=(), natural=None, twist=None, seed=0, ratio=None, **kw):
+    """Rods with random stiffnesses; ``ratio``: EI2 = ratio EI (a number) or random ("random"), else isotropic."""
     rng = np.random.default_rng(seed)
     nodes, idx, _ = stack_polylines(lines)
     s = Structure(nodes)
     net = RodNetwork(s)
     for k, ix in enumerate(idx):
         h = len(ix) if k in closed else len(ix) - 2
+        EA, EI, GJ = rng.uniform(5, 10), rng.uniform(1, 2, h), rng.uniform(0.5, 1.0)
+        EI2 = None if ratio is None else (rng.uniform(0.1, 5, h) if ratio == "random" else ratio * EI)
         net.add_rod(
             ix,
-            RodSection(EA=rng.uniform(5, 10), EI=rng.uniform(1, 2, h), GJ=rng.uniform(0.5, 1.0)),
+            RodSection(EA=EA, EI=EI, GJ=GJ, EI2=EI2),
             RestShape(natural_curvature=(natural[k] if natural else "rest"), natural_twist=(twist[k] if twist else 0.0)),
             closed=k in closed,
             **kw,

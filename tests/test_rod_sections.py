@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from fd import dense_hessian
-from test_rod_effects import check_effects, random_lines
+from test_rod_effects import check_effects, network_from, random_lines
 
 from shellform.errors import ModelError
 from shellform.model import Structure
@@ -82,21 +82,9 @@ def test_extreme_fibre_stress_of_a_rectangle_and_a_circle():
 # -- the anisotropic bending energy -------------------------------------------------------------------
 
 
-def anisotropic_network(lines, closed=(), natural=None, twist=None, seed=0, ratio=None):
+def anisotropic_network(lines, closed=(), natural=None, twist=None, seed=0, ratio="random"):
     """Rods with EI1 != EI2 (random, or EI2 = ratio EI1), natural curvature and twist as asked."""
-    rng = np.random.default_rng(seed)
-    nodes, idx, _ = stack_polylines(lines)
-    s = Structure(nodes)
-    net = RodNetwork(s)
-    for k, ix in enumerate(idx):
-        h = len(ix) if k in closed else len(ix) - 2
-        EI = rng.uniform(1, 2, h)
-        EI2 = EI * ratio if ratio is not None else rng.uniform(0.1, 5, h)
-        net.add_rod(ix, RodSection(EA=rng.uniform(5, 10), EI=EI, GJ=rng.uniform(0.5, 1.0), EI2=EI2),
-                    RestShape(natural_curvature=(natural[k] if natural else "rest"),
-                              natural_twist=(twist[k] if twist else 0.0)),
-                    closed=k in closed)
-    return s, net
+    return network_from(lines, closed=closed, natural=natural, twist=twist, seed=seed, ratio=ratio)
 
 
 def direct_bending_energy(net, q):
