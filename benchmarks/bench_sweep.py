@@ -12,12 +12,15 @@ work shared among the workers, as a share of that:
 
     overhead = (wall - work / workers) / (work / workers)
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py [--cases 20] [--duration 3.0] [--workers 1 2]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py [--cases 20] [--duration 3.0] [--workers 1 2] [--rounds 3]
 
-The CPU time (this process and its workers) is printed beside it, with its
-excess over the loop's: it does not count the time a worker waits for a core
-that another program holds, which the wall time does. The machine's load
-average is printed with the figures.
+Each round runs the loop and then the sweeps, and compares them with that
+round's loop; the summary gives the median of the rounds. The CPU time (this
+process and its workers) is printed beside the wall time, with its excess
+over the loop's: it does not count the time a worker waits for a core that
+another program holds, which the wall time does. The machine's load average
+is printed with each row: on a machine other programs use, read the rows of
+low load.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -106,6 +110,7 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", type=int, default=20)
     parser.add_argument("--duration", type=float, default=3.0, help="seconds of motion per case (sets the work)")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--rounds", type=int, default=3, help="loop and sweeps this many times")
     parser.add_argument("--save", action="store_true", help="also write benchmarks/results/bench_sweep.md")
     args = parser.parse_args(argv)
     damping = ",".join(f"{1.0 + 0.1 * i:.1f}" for i in range(args.cases))
@@ -124,41 +129,38 @@ def main(argv=None) -> int:
         say(f"{len(cases)} cases: scenes/chain_dynamics.toml, duration {args.duration} s, `{param[:40]}...`; "
             f"{os.cpu_count()} CPUs")
         say()
-        say("| run | workers | wall [s] | work / workers [s] | overhead [s] | overhead | CPU [s] | CPU overhead "
-            "| load average before |")
-        say("|---|---:|---:|---:|---:|---:|---:|---:|---|")
-        before = load()
-        loops = [plain_loop(cases, tmp / "loop_before")]
-        loop_wall, loop_cpu, walls = loops[0]
-        say(f"| plain loop | 1 | {loop_wall:.2f} | {sum(walls):.2f} | - | - | {loop_cpu:.2f} | - | {before} |")
-        sweeps = []
-        for workers in args.workers:
+        say("| round | run | workers | wall [s] | work / workers [s] | overhead [s] | overhead | CPU [s] "
+            "| CPU overhead | load average before |")
+        say("|---:|---|---:|---:|---:|---:|---:|---:|---:|---|")
+        overheads: dict[int, list[tuple[float, float]]] = {w: [] for w in args.workers}
+        walls = []
+        for r in range(args.rounds):
             before = load()
-            c0, t0 = cpu_seconds(), time.perf_counter()
-            rows = run_sweep(scene, [param], tmp / f"sweep_{workers}", workers=workers)
-            wall, cpu = time.perf_counter() - t0, cpu_seconds() - c0
-            bad = [r["case"] for r in rows if r["status"] != "finished"]
-            if bad:
-                raise SystemExit(f"sweep with {workers} workers: cases {bad} did not finish")
-            sweeps.append((workers, wall, cpu, before))
-        before = load()
-        loops.append(plain_loop(cases, tmp / "loop_after"))
-        loop_wall, loop_cpu, walls = loops[1]
-        say(f"| plain loop again | 1 | {loop_wall:.2f} | {sum(walls):.2f} | - | - | {loop_cpu:.2f} | - | {before} |")
-        # the work: the mean of the loops before and after the sweeps, so that a drift of the machine's load
-        # between them is shared out
-        work = sum(sum(w) for _, _, w in loops) / 2
-        loop_cpu = sum(c for _, c, _ in loops) / 2
-        walls = [w for _, _, ws in loops for w in ws]
-        for workers, wall, cpu, before in sweeps:
-            share = work / workers
-            say(f"| sweep | {workers} | {wall:.2f} | {share:.2f} | {wall - share:.2f} | "
-                f"{100 * (wall - share) / share:.1f} % | {cpu:.2f} | {100 * (cpu - loop_cpu) / loop_cpu:.1f} % | "
-                f"{before} |")
+            loop_wall, loop_cpu, case_walls = plain_loop(cases, tmp / f"loop_{r}")
+            walls += case_walls
+            work = sum(case_walls)
+            say(f"| {r + 1} | plain loop | 1 | {loop_wall:.2f} | {work:.2f} | - | - | {loop_cpu:.2f} | - | {before} |")
+            for workers in args.workers:
+                before = load()
+                c0, t0 = cpu_seconds(), time.perf_counter()
+                rows = run_sweep(scene, [param], tmp / f"sweep_{r}_{workers}", workers=workers)
+                wall, cpu = time.perf_counter() - t0, cpu_seconds() - c0
+                bad = [row["case"] for row in rows if row["status"] != "finished"]
+                if bad:
+                    raise SystemExit(f"sweep with {workers} workers: cases {bad} did not finish")
+                share = work / workers
+                over, cpu_over = (wall - share) / share, (cpu - loop_cpu) / loop_cpu
+                overheads[workers].append((over, cpu_over))
+                say(f"| {r + 1} | sweep | {workers} | {wall:.2f} | {share:.2f} | {wall - share:.2f} | "
+                    f"{100 * over:.1f} % | {cpu:.2f} | {100 * cpu_over:.1f} % | {before} |")
         imports, first, second = fresh_process(scene, tmp / "fresh")
         say()
-        say(f"work: {work:.2f} s (mean of the two loops) in {len(cases)} cases, {min(walls):.2f} to {max(walls):.2f} s "
-            f"each (mean {2 * work / len(walls):.2f} s); load average after: {load()}")
+        say(f"cases: {min(walls):.2f} to {max(walls):.2f} s each in the loops (mean {sum(walls) / len(walls):.2f} s); "
+            f"load average after: {load()}")
+        for workers, values in overheads.items():
+            say(f"median over {len(values)} round(s), {workers} worker(s): overhead "
+                f"{100 * statistics.median(v[0] for v in values):.1f} % of the wall time, "
+                f"{100 * statistics.median(v[1] for v in values):.1f} % of the CPU time")
         say()
         say(f"a fresh interpreter (as a spawned worker starts): imports {imports:.2f} s, its first case "
             f"{first:.2f} s, the same case again {second:.2f} s: {imports + first - second:.2f} s before it "
