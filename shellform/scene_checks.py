@@ -55,8 +55,8 @@ def check_bar_rope(scene: dict, base_dir) -> None:
         n = len(mesh.points)
     else:
         n = len(scene["nodes"]["coordinates"])
-    if not scene["members"] and scene["rods"] is None:
-        raise SceneError("members", "a bar/rope scene needs at least one [[members]] group (or [rods])")
+    if not scene["members"]:
+        raise SceneError("members", "a bar/rope scene needs at least one [[members]] group")
     for i, m in enumerate(scene["members"]):
         if m["kind"] == "bar" and np.any(np.asarray(m["slack"]) != 0.0):
             raise SceneError(f"members[{i}].slack", "a slack coefficient applies to ropes only (kind = 'rope')")
@@ -218,7 +218,18 @@ def _check_net_geometry(scene: dict, kind: str, base_dir) -> None:
 
 
 def grid_shape(geometry: dict) -> tuple[int, int]:
-    """Nodes along i and j of the structured grid of a validated planform ``[geometry]``."""
+    """Nodes along i and j of the structured grid of a validated planform ``[geometry]``.
+
+    A gmsh planform of an edge length (polygon, curves) gives the nodes of its bounding box at that spacing,
+    an upper estimate; a surface file, unknown before it is meshed, gives (1, 1).
+    """
+    if geometry["type"] in MESHED_PLANFORMS:
+        if geometry["type"] == "surface":
+            return 1, 1
+        pts = (np.asarray(geometry["boundary"]) if geometry["type"] == "polygon"
+               else np.concatenate([c["control_points"] for c in geometry["curves"]]))
+        size = np.ptp(pts, axis=0)[:2] / geometry["edge_length"]
+        return int(np.ceil(size[0])) + 1, int(np.ceil(size[1])) + 1
     if geometry["type"] in ("ellipse", "disk"):
         return geometry["n"] + 1, geometry["n"] + 1
     return geometry["n_i"] + 1, geometry["n_j"] + 1
