@@ -55,8 +55,8 @@ def check_bar_rope(scene: dict, base_dir) -> None:
         n = len(mesh.points)
     else:
         n = len(scene["nodes"]["coordinates"])
-    if not scene["members"]:
-        raise SceneError("members", "a bar/rope scene needs at least one [[members]] group")
+    if not scene["members"] and scene["rods"] is None:
+        raise SceneError("members", "a bar/rope scene needs at least one [[members]] group (or [rods])")
     for i, m in enumerate(scene["members"]):
         if m["kind"] == "bar" and np.any(np.asarray(m["slack"]) != 0.0):
             raise SceneError(f"members[{i}].slack", "a slack coefficient applies to ropes only (kind = 'rope')")
