@@ -10,7 +10,10 @@
    the static one (they should agree: the motion is quasi-static).
 
     python benchmarks/bench_hemisphere.py [--n 11] [--dl 1.0] [--segment 0.05] [--skip-curve] [--skip-dynamic]
-                                          [--json validation/hemisphere/benchmark.json]
+                                          [--newton-only] [--json validation/hemisphere/benchmark.json]
+
+``--newton-only`` also runs the segment's implicit Euler with a Newton
+iteration (tangent and factorisation) in every step (``keep_factor=False``).
 
 Times are wall-clock on whatever machine runs it (the reference machine has
 2 cores shared with other work).
@@ -44,8 +47,24 @@ def whole_curve(n, dl):
     }
 
 
-def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3):
+def dynamic_segment(model, pre, d_end, speed=1.0e-3, h=1.0e-3, **options):
+    """The paper's protocol over the segment: implicit Euler, apex at ``speed``, from rest in the pre-stressed state."""
     from shellform.solvers.implicit_euler import implicit_euler, lumped_mass
+
+    setup = indentation_system(model, pre, mode="I")
+    model.network.frames.restore(setup.frames_state)
+    system = setup.system
+    calls = []
+    tangent_free = system.tangent_free
+    system.tangent_free = lambda q: calls.append(1) or tangent_free(q)
+    mass = lumped_mass(system.structure, model.network)
+    t0 = time.perf_counter()
+    dyn = implicit_euler(system, h, d_end / speed, q0=pre.q, mass=mass, damping=0.0, mu=lambda t: speed * t, **options)
+    wall = time.perf_counter() - t0
+    return dyn, wall, len(calls), setup.force(dyn.q) / setup.force_scale
+
+
+def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3, newton_only=False):
 
     model = build_hemisphere(HemisphereSpec(n, voronoi_length=dl))
     pre = prestress_on_net(model)
@@ -58,25 +77,24 @@ def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3):
     t_cont = time.perf_counter() - t0
     f_static = res.y[-1]
     # implicit Euler: the apex moves at `speed`, the structure starts at rest in the pre-stressed state
-    setup = indentation_system(model, pre, mode="I")
-    model.network.frames.restore(setup.frames_state)
-    system = setup.system
-    mass = lumped_mass(system.structure, model.network)
-    t_end = d_end / speed
-    t0 = time.perf_counter()
-    dyn = implicit_euler(system, h, t_end, q0=pre.q, mass=mass, damping=0.0, mu=lambda t: speed * t)
-    t_dyn = time.perf_counter() - t0
-    f_dyn = setup.force(dyn.q) / setup.force_scale
-    return {
-        "segment_dD_over_R": x_end, "dof": system.n_dof,
+    dyn, t_dyn, tangents, f_dyn = dynamic_segment(model, pre, d_end, speed, h)
+    out = {
+        "segment_dD_over_R": x_end, "dof": res.n_dof,
         "continuation_s": t_cont, "continuation_steps": res.steps,
         "implicit_euler_s": t_dyn, "implicit_euler_steps": dyn.steps, "implicit_euler_success": dyn.success,
-        "implicit_euler_newton_iterations": int(sum(dyn.newton_iterations)),
+        "implicit_euler_newton_iterations": int(sum(dyn.newton_iterations)), "implicit_euler_tangents": tangents,
         "ratio_implicit_euler_over_continuation": t_dyn / t_cont,
         "force_end_continuation": float(f_static), "force_end_implicit_euler": float(f_dyn),
         "whole_path_implicit_euler_steps": int(round(2 * R / speed / h)),
         "whole_path_implicit_euler_estimate_s": t_dyn * 2.0 / x_end,
     }
+    if newton_only:
+        # the same protocol with a Newton iteration (tangent and factorisation) in every step
+        dyn, t_new, tangents, f_new = dynamic_segment(model, pre, d_end, speed, h, keep_factor=False)
+        out.update({"newton_only_s": t_new, "newton_only_iterations": int(sum(dyn.newton_iterations)),
+                    "newton_only_tangents": tangents, "force_end_newton_only": float(f_new),
+                    "ratio_newton_only_over_continuation": t_new / t_cont})
+    return out
 
 
 def main(argv=None):
@@ -86,6 +104,8 @@ def main(argv=None):
     p.add_argument("--segment", type=float, default=0.05, help="end of the compared segment, dD/R")
     p.add_argument("--skip-curve", action="store_true")
     p.add_argument("--skip-dynamic", action="store_true")
+    p.add_argument("--newton-only", action="store_true",
+                   help="also run the segment's implicit Euler without the kept factor (keep_factor=False)")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = p.parse_args(argv)
     out = {}
@@ -93,7 +113,7 @@ def main(argv=None):
         out["mode_I_whole_curve"] = whole_curve(args.n, args.dl * 1e-3)
         print(json.dumps(out["mode_I_whole_curve"], indent=1), flush=True)
     if not args.skip_dynamic:
-        out["segment"] = segment(args.n, args.dl * 1e-3, args.segment)
+        out["segment"] = segment(args.n, args.dl * 1e-3, args.segment, newton_only=args.newton_only)
         print(json.dumps(out["segment"], indent=1), flush=True)
     if args.json:
         import platform

@@ -134,6 +134,12 @@ class ImplicitEulerOptions:
         Smallest time step [s] a failing step is halved down to (default ``h / 1024``).
     linear_solver : str
         See :mod:`shellform.solvers.linear`.
+    keep_factor : bool
+        Keep the factor of the last Newton iteration's Jacobian and start the
+        next step of the same size with chord iterations on it (one residual
+        and one solve each, no tangent and no factorisation) while each
+        divides the residual by at least ``1 / CHORD_RATE``; Newton takes over
+        otherwise. The converged state meets the same tolerance.
     save_every : int
         Keep every ``save_every``-th state in ``result.states`` (0: none).
     """
@@ -151,6 +157,12 @@ class ImplicitEulerOptions:
     min_step: float | None = None
     linear_solver: str = "direct"
     save_every: int = 0
+    keep_factor: bool = True
+
+
+#: A chord iteration with a kept factor must divide the step's residual by 1 / CHORD_RATE, or
+#: Newton takes over (``benchmarks/bench_hemisphere.py --chord-rates``).
+CHORD_RATE = 0.1
 
 
 def _as_function(value) -> Callable[[float], float]:
@@ -173,6 +185,7 @@ class _Stepper:
         self.mass, self.damping = mass, damping
         self.lam, self.mu = _as_function(options.lam), _as_function(options.mu)
         self.paths = tuple(options.paths)
+        self.kept = None  # (h, factor) of the last unshifted Jacobian
 
     def supports(self, q, t):
         """``q`` with the constrained DOFs at their values at time ``t``."""
@@ -188,7 +201,21 @@ class _Stepper:
         r, R = pb.residual(q)
         norm = previous = float(np.linalg.norm(R))
         max_iter = self.o.max_newton
-        for it in range(1, max_iter + 1):
+        done, phi = 0, None
+        # chord iterations with the kept factor of an earlier step of the same size, while they converge fast
+        while self.kept is not None and self.kept[0] == h and done < max_iter:
+            if pb.met(R, r):
+                return q, r, done
+            phi = pb.merit(q) if phi is None else phi
+            taken = self._chord(pb, self.kept[1], q, R, norm, phi)
+            if taken is None:
+                break
+            done += 1
+            previous = norm
+            q, r, R, norm, phi = taken
+            if norm > CHORD_RATE * previous:
+                break
+        for it in range(done + 1, max_iter + 1):
             if it > 1 and pb.met(R, r):
                 # converged by the tolerance alone: no tangent is needed to say so (the
                 # round-off floor of the full test, which needs the tangent's diagonal, only widens it)
@@ -213,18 +240,43 @@ class _Stepper:
             return _stalled(eq, q, r, max_iter)
         return None, f"Newton did not converge in {max_iter} iterations ({eq.describe()})", max_iter
 
+    def _chord(self, pb, F, q, R, norm, phi):
+        """A full step with the kept factor ``F`` when it lowers the incremental potential (``phi`` at
+        ``q``) and the residual: ``(q, r, R, |R|, phi)`` after it, else None."""
+        try:
+            p = F.solve(-R)
+        except SingularMatrixError:
+            return None
+        slope = float(R @ p)
+        if not slope < 0.0:
+            return None
+        q_try = q.copy()
+        q_try[pb.free] += p
+        r_try, R_try = pb.residual(q_try)
+        n_try = float(np.linalg.norm(R_try))
+        if not (np.isfinite(n_try) and n_try < norm):
+            return None
+        phi_try = pb.merit(q_try)
+        if not phi_try <= phi + 1e-4 * slope:
+            return None
+        return q_try, r_try, R_try, n_try, phi_try
+
     def _descend(self, pb, q, R, J, norm):
         """The Newton step from ``q``, shifted until it lowers the incremental potential:
         ``(q, r, R, |R|)`` after it, or None when no shift gives one."""
         phi0 = pb.merit(q)
         diag = np.abs(J.diagonal())
         base_shift = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
+        self.kept = None  # freed first: the new factorisation takes over its symbolic analysis
         for shift in [0.0] + [base_shift * 10.0**k for k in range(-8, 4)]:
             A = J if shift == 0.0 else shift_diagonal(J, shift)
             try:
-                p = factorize(A, self.o.linear_solver).solve(-R)
+                F = factorize(A, self.o.linear_solver)
+                p = F.solve(-R)
             except SingularMatrixError:
                 continue
+            if shift == 0.0 and self.o.keep_factor:
+                self.kept = (pb.h, F)
             slope = float(R @ p)
             if slope >= 0.0:
                 continue
@@ -256,13 +308,22 @@ class _StepPotential:
         self.jac_diag = self.Mf / h**2 + self.Cf / h
         self.base, self.hv, self.h = q_k.copy(), h * v_k[free], h
         # forces in play: loads, the inertia of the motion, and the member forces at the
-        # step's start (the scale changes little within a step, and is computed once)
+        # step's start (the scale changes little within a step, and is computed once, when
+        # the loads and the inertia alone are too small a scale to accept the step)
         ext = system.external_force(self.lam)
         inertia = self.Mf * v_k[free] / h
-        play = forces_in_play(system, q_k, self.lam)
         self.applied = float(np.linalg.norm(ext))
-        self.in_play = max(self.applied, float(np.linalg.norm(inertia)), play[0])
-        self.in_play_max = max(_max_abs(ext), _max_abs(inertia), play[1])
+        self.loads = max(self.applied, float(np.linalg.norm(inertia)))
+        self.loads_max = max(_max_abs(ext), _max_abs(inertia))
+        self._in_play = None
+
+    @property
+    def in_play(self) -> tuple[float, float]:
+        """Norm and largest entry of the forces in play (the member forces at the step's start included)."""
+        if self._in_play is None:
+            play = forces_in_play(self.system, self.base, self.lam)
+            self._in_play = (max(self.loads, play[0]), max(self.loads_max, play[1]))
+        return self._in_play
 
     def merit(self, q):
         dq = (q - self.base)[self.free]
@@ -282,14 +343,16 @@ class _StepPotential:
 
     def met(self, R, r) -> bool:
         """Whether ``R`` meets the tolerance (what :meth:`test` calls ``met``), without the tangent."""
-        reactions = r[self.system.constrained]
-        scale = max(self.in_play, float(np.linalg.norm(reactions)))
-        return float(np.linalg.norm(R)) <= self.o.rtol * scale + self.o.atol
+        norm = float(np.linalg.norm(R))
+        reactions = float(np.linalg.norm(r[self.system.constrained]))
+        if norm <= self.o.rtol * max(self.loads, reactions) + self.o.atol:
+            return True  # the member forces could only widen the scale
+        return norm <= self.o.rtol * max(self.in_play[0], reactions) + self.o.atol
 
     def test(self, q, r, R, J) -> EquilibriumCheck:
         reactions = r[self.system.constrained]
-        scale = max(self.in_play, float(np.linalg.norm(reactions)))
-        scale_max = max(self.in_play_max, _max_abs(reactions))
+        scale = max(self.in_play[0], float(np.linalg.norm(reactions)))
+        scale_max = max(self.in_play[1], _max_abs(reactions))
         return EquilibriumCheck(float(np.linalg.norm(R)), scale, self.o.rtol * scale + self.o.atol,
                                 roundoff_level(J.diagonal(), q), self.o.roundoff_rtol, self.applied,
                                 _max_abs(R), scale_max)
