@@ -8,8 +8,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout, whether installed or not
 
-from shellform.schema import reference  # noqa: E402
-from shellform.scene_format import SCENE  # noqa: E402
+from shellform.scene.schema import reference  # noqa: E402
+from shellform.scene.format import SCENE  # noqa: E402
 
 MARK = "This section is generated from the schema (`shellform schema` prints it).\n"
 

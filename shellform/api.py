@@ -46,7 +46,7 @@ def builtin_scene_path(name: str) -> Path:
 def scene_from_toml(text: str, base_dir=None) -> dict:
     """A checked scene from TOML text (relative file names are relative to ``base_dir``)."""
     from .scene import parse_scene
-    from .scene_files import parse_toml
+    from .scene.files import parse_toml
 
     return parse_scene(parse_toml(text), base_dir=base_dir)
 

@@ -108,8 +108,8 @@ def _cmd_serve(args) -> int:
 
 
 def _cmd_schema(args) -> int:
-    from .schema import reference
-    from .scene_format import SCENE
+    from .scene.schema import reference
+    from .scene.format import SCENE
 
     print(reference(SCENE))
     return 0

@@ -21,7 +21,7 @@ from .errors import MechanismError, ModelError
 AXES = {"x": 0, "y": 1, "z": 2}
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 #: largest coordinate magnitude [m]: beyond it double precision leaves no digits for member lengths
-#: (a scene is held to 1e6 m, see :data:`shellform.schema.UNIT_BOUNDS`)
+#: (a scene is held to 1e6 m, see :data:`shellform.scene.schema.UNIT_BOUNDS`)
 MAX_COORDINATE = 1.0e12
 
 

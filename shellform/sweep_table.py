@@ -50,8 +50,8 @@ def summary_units(summary: dict) -> dict[str, str]:
 
 def parameter_unit(key: str) -> str:
     """The unit the scene reference gives a swept key (``members[0].EA`` -> ``N``), or ``""``."""
-    from .scene_format import SCENE
-    from .schema import Key, Table
+    from .scene.format import SCENE
+    from .scene.schema import Key, Table
     from .sweep_cases import parse_path
 
     node = SCENE

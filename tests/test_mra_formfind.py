@@ -295,7 +295,7 @@ def test_scene_reference_states_the_case_defaults_of_the_ropes():
     # the schema (what `shellform schema` and docs/scenes.md print) cannot import the solver
     # modules, so its defaults are written out: they must be the ones a case uses
     from shellform.mra.case import DEFAULTS
-    from shellform.scene_format import SCENE
+    from shellform.scene.format import SCENE
 
     ropes = SCENE.keys["ropes"].keys
     assert {k: ropes[k].default for k in DEFAULTS["ropes"]} == DEFAULTS["ropes"]

@@ -10,7 +10,7 @@ import pytest
 from shellform.cli import main
 from shellform.errors import SceneError
 from shellform.scene import SCENE, load_scene, mra_params, parse_scene
-from shellform.schema import Key, Table, check_table
+from shellform.scene.schema import Key, Table, check_table
 
 if sys.version_info >= (3, 11):
     import tomllib

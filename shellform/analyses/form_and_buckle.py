@@ -50,7 +50,7 @@ def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | Non
 
 def _section(scene: dict) -> dict:
     """The rods' section (any shape of ``[rods]``; by default the solid circle of ROD_DEFAULTS) and rest shape."""
-    from ..scene_rods import scene_section
+    from ..scene.rod_layouts import scene_section
 
     rods = scene["rods"] or {}
     E = rods.get("E") or ROD_DEFAULTS["E"]

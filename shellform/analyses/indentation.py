@@ -9,7 +9,7 @@ import numpy as np
 from .. import scene as scenes
 from ..io import write_series, write_state
 from ..io.table import CurveStyle, plot_curve, write_csv
-from ..schema import check_table
+from ..scene.schema import check_table
 from ..progress import Progress, Status
 from .common import plot_or_note, series_time, write_final_state
 

@@ -165,8 +165,8 @@ def _text_list(value) -> list[str]:
 
 def form_scene(v: dict, analysis: str) -> Built:
     """The planform scene of the form-finding inputs."""
-    from ..scene_format import SCENE
-    from ..schema import check_table
+    from ..scene.format import SCENE
+    from ..scene.schema import check_table
     from ..errors import SceneError
 
     if v["Boundary"] is None:

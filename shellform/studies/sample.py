@@ -17,9 +17,9 @@ import numpy as np
 
 def imperfect_model(scene: dict, delta: np.ndarray | None):
     """The scene's Structure and System with its stress-free nodes moved by ``delta`` (n_nodes, 3)."""
-    from ..scene_effects import scene_system
-    from ..scene_model import Model
-    from ..scene_structure import build_structure, reference_nodes
+    from ..scene.system import scene_system
+    from ..scene.build import Model
+    from ..scene.structure import build_structure, reference_nodes
 
     nodes = reference_nodes(scene)
     if delta is not None:

@@ -11,7 +11,7 @@ from ..errors import SceneError
 
 @dataclass(frozen=True)
 class StudySettings:
-    """What an imperfection study computes (the keys of ``[study]``, see ``scene_format.STUDY``)."""
+    """What an imperfection study computes (the keys of ``[study]``, see ``shellform.scene.format.STUDY``)."""
 
     shapes: str
     #: amplitudes as multiples of the reference length, in increasing order

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from .errors import ModelError, SceneError
+from ..errors import ModelError, SceneError
 
 
 def support_key(scene: dict, i: int, key: str = "") -> str:

@@ -1,15 +1,15 @@
 """The scene format: every table and key a scene may hold, with its type, unit, default and meaning.
 
 The machinery that checks a value against a key and writes the reference is
-:mod:`shellform.schema`; :data:`SCENE` is what ``shellform schema`` prints and
+:mod:`shellform.scene.schema`; :data:`SCENE` is what ``shellform schema`` prints and
 ``docs/scenes.md`` holds (``python docs/update_reference.py``).
 """
 
 from __future__ import annotations
 
-from .mra.formfind import COARSE_START_NODES
+from ..mra.formfind import COARSE_START_NODES
 from .schema import Key, Table
-from .solvers.relaxation.options import Refinements, RelaxationOptions
+from ..solvers.relaxation.options import Refinements, RelaxationOptions
 
 EFFECTS = ("axial", "rope", "rods", "loads", "gravity", "imperfection")
 #: structured grids (rectangle, ellipse, disk, bspline) and gmsh planforms of any shape (polygon, curves, surface)

@@ -6,7 +6,7 @@ import stat
 import sys
 from pathlib import Path
 
-from .errors import SceneError
+from ..errors import SceneError
 from .schema import LIMITS
 
 if sys.version_info >= (3, 11):

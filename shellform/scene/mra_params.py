@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene_format import SCENE
+from .format import SCENE
 from .schema import check_table
 
 _GEOMETRY_KEYS = {

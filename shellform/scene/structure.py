@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SceneError
-from .model import Structure
-from .scene_errors import scene_error_at, support_key
+from ..errors import SceneError
+from ..model import Structure
+from .error_keys import scene_error_at, support_key
 
 
 def reference_nodes(scene: dict) -> np.ndarray:
@@ -80,7 +80,7 @@ def build_structure_and_rods(scene: dict, nodes: np.ndarray | None = None):
     ``nodes`` overrides the scene's node coordinates (the scene's own nodes;
     the copies of penalty joints follow their nodes).
     """
-    from .scene_rods import add_scene_rods, has_rods, rod_layout
+    from .rod_layouts import add_scene_rods, has_rods, rod_layout
 
     nodes = reference_nodes(scene) if nodes is None else nodes
     layout = rod_layout(scene, nodes) if has_rods(scene) else None

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assembly import System, member_effects
-from .effects import gravity_effect, nodal_load_effects
-from .errors import SceneError
-from .model import Structure
-from .scene_errors import scene_error_at
+from ..assembly import System, member_effects
+from ..effects import gravity_effect, nodal_load_effects
+from ..errors import SceneError
+from ..model import Structure
+from .error_keys import scene_error_at
 
 
 def default_effects(scene: dict) -> list[str]:
@@ -46,7 +46,7 @@ def _member_effects(structure: Structure) -> list:
     """The bar and rope effects of a structure; rods have theirs in their network."""
     if not any(g.kind == "rod" for g in structure.groups):
         return member_effects(structure)
-    from .assembly import AxialBar, Rope
+    from ..assembly import AxialBar, Rope
 
     kinds = {"bar": AxialBar, "rope": Rope}
     effects = []
@@ -62,11 +62,11 @@ def scene_system(scene: dict, structure: Structure, network=None) -> System:
     """A System with exactly the effects the scene lists (or calls for).
 
     ``network`` is the scene's RodNetwork
-    (:func:`~shellform.scene_structure.build_structure_and_rods`), required
+    (:func:`~shellform.scene.structure.build_structure_and_rods`), required
     when the scene has rods.
     """
-    from .effects.loads import ConstantForce
-    from .scene_rods import has_rods
+    from ..effects.loads import ConstantForce
+    from .rod_layouts import has_rods
 
     include = (scene["effects"] or {}).get("include") or default_effects(scene)
     effects = []

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModelError, SceneError
-from .scene_effects import default_effects
-from .scene_errors import support_key
-from .scene_format import GRID_GROUPS, MESHED_PLANFORMS, PLANFORMS
+from ..errors import ModelError, SceneError
+from .system import default_effects
+from .error_keys import support_key
+from .format import GRID_GROUPS, MESHED_PLANFORMS, PLANFORMS
 
 #: planforms meshed as structured grids of a given number of divisions
 STRUCTURED_PLANFORMS = tuple(p for p in PLANFORMS if p not in MESHED_PLANFORMS)
@@ -30,7 +30,7 @@ MAX_SLENDERNESS = 1000
 
 def _mesh_of(scene: dict, base_dir):
     """The mesh file of a ``file`` scene, read; its errors name ``geometry.file``."""
-    from .io.mesh_import import read_mesh
+    from ..io.mesh_import import read_mesh
 
     g = scene["geometry"]
     path = Path(g["file"])
@@ -201,7 +201,7 @@ def _check_net_geometry(scene: dict, kind: str, base_dir) -> None:
             if isinstance(w, np.ndarray) and len(w) != n:
                 raise SceneError(f"geometry.curves[{k}].weights", f"has {len(w)} values for {n} control points")
     if kind == "surface":
-        from .geometry.planforms import SURFACE_FILES
+        from ..geometry.planforms import SURFACE_FILES
 
         path = Path(g["file"])
         path = path if path.is_absolute() else Path(base_dir or ".") / path
@@ -294,7 +294,7 @@ def check_hemisphere(scene: dict) -> None:
     n = g["n"]
     if n % 2 == 0 or n < 3:
         raise SceneError("geometry.n", f"got {n}; the hemisphere needs an odd number of rods per direction >= 3")
-    from .gridshell.hemisphere import PAPER
+    from ..gridshell.hemisphere import PAPER
 
     radius = g["radius"] if g["radius"] is not None else PAPER["radius"]
     spacing = np.pi * radius / (n + 1)  # between joints along a rod (the Chebyshev net's)

@@ -3,7 +3,7 @@
 :class:`Key` and :class:`Table` describe a TOML table; :func:`check_table`
 validates data against one (errors name the key, the value and what is
 allowed) and :func:`reference` writes the Markdown reference. The scene format
-itself, :data:`~shellform.scene_format.SCENE`, is in :mod:`shellform.scene_format`.
+itself, :data:`~shellform.scene.format.SCENE`, is in :mod:`shellform.scene.format`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SceneError
+from ..errors import SceneError
 
 _REQUIRED = object()
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import importlib.util
 
-from .errors import SceneError
-from .scene_format import ANALYSES_OF, BAR_ROPE, FORM_FINDING
+from ..errors import SceneError
+from .format import ANALYSES_OF, BAR_ROPE, FORM_FINDING
 
 # which tables and [analysis] keys apply where: name -> (allowed analyses, where it applies, in words)
 _TABLE_SCOPE = {

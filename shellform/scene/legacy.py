@@ -8,8 +8,8 @@ and ``[analysis.buckling]`` (with the rod section of ``[buckling]`` as
 
 from __future__ import annotations
 
-from .errors import SceneError
-from .scene_format import BUCKLING, SCENE
+from ..errors import SceneError
+from .format import BUCKLING, SCENE
 from .schema import Table, check_table
 
 #: older MRA layout: top-level table -> sub-table of [analysis]

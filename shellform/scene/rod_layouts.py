@@ -15,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ModelError, SceneError
-from .rods.mesh_lines import chain_directors, edge_chains, vertex_normals
-from .rods.section import RestShape, RodSection, section_of
-from .rods.shapes import hollow_circle, rectangle, solid_circle
-from .scene_errors import scene_error_at
+from ..errors import ModelError, SceneError
+from ..rods.mesh_lines import chain_directors, edge_chains, vertex_normals
+from ..rods.section import RestShape, RodSection, section_of
+from ..rods.shapes import hollow_circle, rectangle, solid_circle
+from .error_keys import scene_error_at
 
 #: the shape keys of each section
 SECTION_KEYS = {"circle": ("radius",), "hollow_circle": ("radius", "thickness"), "rectangle": ("depth", "width")}
@@ -178,7 +178,7 @@ def add_scene_rods(scene: dict, structure, layout: RodLayout):
     with ``support_rotation = 'clamped'``, both nodes of those edges in the
     support's directions). Call after the supports are fixed.
     """
-    from .rods.network import RodNetwork
+    from ..rods.network import RodNetwork
 
     rods = scene["rods"]
     section = scene_section(rods)

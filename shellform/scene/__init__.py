@@ -1,6 +1,6 @@
 """Scenes: TOML descriptions of a structure and its analysis, in one schema.
 
-:data:`~shellform.scene_format.SCENE` lists every key: ``load_scene`` reads and
+:data:`~shellform.scene.format.SCENE` lists every key: ``load_scene`` reads and
 validates a file against it and checks what the schema alone cannot (which
 tables suit which geometry and analysis, sizes, node sets); errors name the
 key, the value and what is allowed.
@@ -21,7 +21,7 @@ planforms              ``mra``, ``form_and_buckle`` (structured grids)
 =====================  =============================================
 
 Older MRA scenes (``validation/mra/README.md``) keep working: their tables
-are read where the current layout has them (:mod:`shellform.scene_legacy`),
+are read where the current layout has them (:mod:`shellform.scene.legacy`),
 and a single ``[supports]`` table as one ``[[supports]]`` entry.
 
 ``build_model`` turns a validated bar/rope scene into a
@@ -30,20 +30,21 @@ and a single ``[supports]`` table as one ``[[supports]]`` entry.
 lists; ``mra_params`` gives the parameters of a form-finding scene for
 :func:`shellform.analyses.form_finding.run_mra_case`.
 
-This module is the entry point; the parts live in modules of their own:
-reading the file (``scene_files``), the older layout (``scene_legacy``),
-which tables apply where (``scene_scope``), the checks per geometry
-(``scene_checks``), and the model built from a bar/rope scene
-(``scene_structure``, ``scene_effects``, ``scene_model``) or the parameters
-of a form-finding one (``scene_mra``).
+This package's entry; the parts live in modules of their own: the keys
+(``format``) and the machinery that checks and describes them (``schema``),
+reading the file (``files``), the older layout (``legacy``), which tables
+apply where (``scope``), the checks per geometry (``checks``) and the key a
+model error names (``error_keys``); the model built from a scene
+(``structure``, ``rod_layouts``, ``system``, ``build``) or the parameters of
+a form-finding one (``mra_params``).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .errors import SceneError
-from .scene_checks import (
+from ..errors import SceneError
+from .checks import (
     MAX_NODES,
     MAX_SLENDERNESS,
     MAX_TIME_STEPS,
@@ -53,14 +54,14 @@ from .scene_checks import (
     check_planform,
     grid_shape,
 )
-from .scene_effects import default_effects, random_forces, scene_system
-from .scene_files import MAX_SCENE_BYTES, parse_toml, read_scene_text, shown_path
-from .scene_format import FORM_FINDING, PLANFORMS, SCENE
-from .scene_legacy import merge_legacy, split_legacy
-from .scene_model import Model, build_model
-from .scene_mra import mra_params
-from .scene_scope import check_scope
-from .scene_structure import (
+from .system import default_effects, random_forces, scene_system
+from .files import MAX_SCENE_BYTES, parse_toml, read_scene_text, shown_path
+from .format import FORM_FINDING, PLANFORMS, SCENE
+from .legacy import merge_legacy, split_legacy
+from .build import Model, build_model
+from .mra_params import mra_params
+from .scope import check_scope
+from .structure import (
     build_structure,
     member_connectivity,
     reference_nodes,

@@ -6,11 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .assembly import System
-from .errors import SceneError
-from .model import Structure
-from .scene_effects import scene_system
-from .scene_structure import build_structure_and_rods, reference_nodes, scene_start_state
+from ..assembly import System
+from ..errors import SceneError
+from ..model import Structure
+from .system import scene_system
+from .structure import build_structure_and_rods, reference_nodes, scene_start_state
 
 
 @dataclass
@@ -43,8 +43,8 @@ def _scaled(delta: np.ndarray, amplitude: float, where: str) -> np.ndarray:
 
 def _mode_shape(scene: dict, structure: Structure, system: System) -> tuple[np.ndarray, float]:
     """Lowest eigenmode of the free tangent (translations per node) and its eigenvalue."""
-    from .solvers import solve_static
-    from .solvers.stability import critical_modes
+    from ..solvers import solve_static
+    from ..solvers.stability import critical_modes
 
     imp = scene["imperfection"]
     q = system.state(base=scene_start_state(scene, structure))
