@@ -40,8 +40,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import tomllib
 
-from shellform.sweep import run_case, run_sweep
-from shellform.sweep_cases import expand, parse_param
+from shellform.studies.sweep import run_case, run_sweep
+from shellform.studies.sweep_cases import expand, parse_param
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -68,7 +68,7 @@ def cpu_seconds() -> float:
 _FRESH = """
 import sys, time, tomllib
 t0 = time.perf_counter()
-from shellform.sweep import run_case
+from shellform.studies.sweep import run_case
 t1 = time.perf_counter()
 data = tomllib.loads(open(sys.argv[1]).read())
 walls = []

@@ -63,7 +63,7 @@ def _cmd_validate(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from .sweep import SweepOptions, run_sweep
+    from .studies.sweep import SweepOptions, run_sweep
 
     progress = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
     options = SweepOptions(workers=args.workers, scheduler=args.scheduler, rerun=args.rerun, plot_y=args.plot)

@@ -8,8 +8,8 @@ import pytest
 from shellform.cli import main
 from shellform.errors import SceneError
 from shellform.io.table import read_csv
-from shellform.sweep import SweepOptions, parse_param, parse_path, run_sweep, scalars, set_value
-from shellform.sweep_table import parameter_unit, summary_units
+from shellform.studies.sweep import SweepOptions, parse_param, parse_path, run_sweep, scalars, set_value
+from shellform.studies.sweep_table import parameter_unit, summary_units
 from test_io_and_cli import VON_MISES
 
 SCENE = VON_MISES.replace("load_factor = 20.0", "load_factor = 5.0")
@@ -149,7 +149,7 @@ def test_nested_results_are_columns_and_an_unknown_plot_key_is_refused(truss, tm
 
 def test_axis_units_come_from_the_scene_reference_and_the_summaries(truss, tmp_path, monkeypatch):
     import shellform.io.table
-    import shellform.sweep
+    import shellform.studies.sweep
 
     assert parameter_unit("members[0].EA") == "N"
     assert parameter_unit("ropes.slack") == ""  # a coefficient: no unit
@@ -163,8 +163,8 @@ def test_axis_units_come_from_the_scene_reference_and_the_summaries(truss, tmp_p
     assert read_csv(tmp_path / "a" / "sweep.csv")["members[0].EA"].tolist() == [1e4, 2e4]  # header "... [N]"
     assert (tmp_path / "a" / "sweep.csv").read_text().startswith("case,members[0].EA [N],status,")
     # a summary that gives units: the axis says them
-    real = shellform.sweep.run_case
-    monkeypatch.setattr(shellform.sweep, "run_case",
+    real = shellform.studies.sweep.run_case
+    monkeypatch.setattr(shellform.studies.sweep, "run_case",
                         lambda *args: {**real(*args), "units": {"max_displacement": "m", "iterations": ""}})
     run_sweep(truss, ["members[0].EA=1e4,2e4"], tmp_path / "b", workers=1)
     assert labels[-1] == ("members[0].EA [N]", "max_displacement [m]")

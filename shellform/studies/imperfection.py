@@ -8,7 +8,7 @@
    ``perfect.npz`` so that a resumed study takes the same shapes;
 2. every sample (shape, sign, amplitude) is an imperfect structure traced
    to its first critical point (:mod:`~shellform.studies.sample`), on the
-   runner of :mod:`shellform.runner` (this process, a process pool, Dask);
+   runner of :mod:`shellform.studies.runner` (this process, a process pool, Dask);
    each finished sample is written to ``samples/sample_NNNNN.json`` and the
    table ``study.csv`` is rewritten as samples finish;
 3. the knock-down curves (``knockdown.png``), the distribution of random
@@ -37,7 +37,7 @@ from ..io import write_json, write_mode
 from ..io.checkpoint import digest, load_checkpoint, save_checkpoint
 from ..io.files import output_folder, output_lock
 from ..io.table import write_csv
-from ..runner import Runner
+from .runner import Runner
 from . import shapes as sh
 from .sample import critical_record, imperfect_model, run_sample, trace_to_instability
 from .settings import StudySettings, study_settings
@@ -62,7 +62,7 @@ class StudyError(ShellformError):
 
 @dataclass
 class StudyOptions:
-    """Where the samples run (:class:`~shellform.runner.Runner`) and whether finished ones are run again."""
+    """Where the samples run (:class:`~shellform.studies.runner.Runner`) and whether finished ones are run again."""
 
     workers: int = 2
     scheduler: str | None = None

@@ -4,7 +4,7 @@
 runs every combination (Cartesian product) as its own scene in ``case_NNN/``
 and gathers one table (``sweep.csv``, ``sweep.json``) and a plot (``sweep.png``).
 
-Where the cases run (:mod:`shellform.runner`, which studies share):
+Where the cases run (:mod:`shellform.studies.runner`, which studies share):
 
 - ``workers=1``: one after the other in this process;
 - ``workers=N``: on a pool of N processes started afresh (``spawn``);
@@ -27,7 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from .io.files import output_folder, output_lock
+from ..io.files import output_folder, output_lock
 from .runner import Runner
 from .sweep_cases import Case, expand, parse_param, parse_path, set_value
 from .sweep_table import SweepTable, scalars
@@ -47,7 +47,7 @@ Progress = Callable[[str], None]
 
 @dataclass
 class SweepOptions:
-    """Where and how the cases of a sweep run (``workers``, ``scheduler``: see :class:`~shellform.runner.Runner`)."""
+    """Where and how the cases of a sweep run (``workers``, ``scheduler``: see :class:`~shellform.studies.runner.Runner`)."""
 
     #: local processes; 1 runs the cases in this process, one after the other
     workers: int = 2
@@ -67,8 +67,8 @@ def run_case(data: dict, out_dir: str, base_dir: str) -> dict:
 
     Module-level so that a spawned worker or a Dask worker finds it by name.
     """
-    from .analyses import run_scene
-    from .scene import parse_scene
+    from ..analyses import run_scene
+    from ..scene import parse_scene
 
     try:
         return run_scene(parse_scene(data, base_dir), out_dir)
@@ -94,7 +94,7 @@ def finished_summary(case: Case, folder: Path) -> dict | None:
 
 
 def _mark(case: Case, folder: Path) -> None:
-    from .io import write_json
+    from ..io import write_json
 
     values = {k: v if isinstance(v, (bool, int, float, str)) else str(v) for k, v in case.assignment.items()}
     write_json(folder / CASE_FILE, {"case": case.name, "assignment": values, "fingerprint": case.fingerprint})
@@ -129,7 +129,7 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
         case summary has (after the table is written).
     """
     opts = options or SweepOptions(workers=workers, scheduler=scheduler, rerun=rerun, plot_y=plot_y)
-    from .scene import load_scene
+    from ..scene import load_scene
 
     progress = progress or (lambda msg: None)
     scene_path = Path(scene_path)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .errors import SceneError
+from ..errors import SceneError
 from .sweep_cases import Case
 
 #: the summary entries that say what a case is, not what it computed: not columns
@@ -50,8 +50,8 @@ def summary_units(summary: dict) -> dict[str, str]:
 
 def parameter_unit(key: str) -> str:
     """The unit the scene reference gives a swept key (``members[0].EA`` -> ``N``), or ``""``."""
-    from .scene.format import SCENE
-    from .scene.schema import Key, Table
+    from ..scene.format import SCENE
+    from ..scene.schema import Key, Table
     from .sweep_cases import parse_path
 
     node = SCENE
@@ -122,8 +122,8 @@ class SweepTable:
         return {c: u for c, u in units.items() if u}
 
     def write(self) -> None:
-        from .io import write_json
-        from .io.table import write_csv
+        from ..io import write_json
+        from ..io.table import write_csv
 
         rows, columns, units = self.ordered, self.columns, self.column_units()
         write_csv(self.out / "sweep.csv", {c: [r.get(c, "") for r in rows] for c in columns}, columns, units=units)
@@ -143,7 +143,7 @@ class SweepTable:
         SceneError
             ``y`` is not a column of the table; the message lists the ones there are.
         """
-        from .io.table import plot_curve
+        from ..io.table import plot_curve
 
         columns, units = self.columns, self.column_units()
         if y is not None and y not in columns:

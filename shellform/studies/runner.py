@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
-from .errors import SceneError
+from ..errors import SceneError
 
 #: a task: its key (handed back with its result) and the arguments of the function
 Task = tuple[object, tuple]

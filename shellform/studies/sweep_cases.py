@@ -15,7 +15,7 @@ import re
 import sys
 from dataclasses import dataclass
 
-from .errors import SceneError
+from ..errors import SceneError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -103,7 +103,7 @@ def expand(raw: dict, params: list[tuple[str, list]], base_dir=None) -> list[Cas
     ``base_dir`` is the folder relative file names of the scene are relative to.
     A bad value is refused here, before any case runs, naming the case.
     """
-    from .scene import parse_scene
+    from ..scene import parse_scene
 
     out = []
     keys = [k for k, _ in params]
