@@ -7,7 +7,7 @@ from fd import dense_hessian, fd_gradient, fd_jacobian
 
 from shellform.errors import MechanismError, ModelError
 from shellform.model import Structure
-from shellform.rods.kinematics import (
+from shellform.effects.rod_kinematics import (
     curvature_binormal,
     material_curvatures,
     material_frames,

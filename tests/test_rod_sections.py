@@ -8,7 +8,7 @@ from test_rod_effects import check_effects, network_from, random_lines
 from shellform.errors import ModelError
 from shellform.model import Structure
 from shellform.rods import RestShape, RodNetwork, RodSection, stack_polylines
-from shellform.rods.kinematics import curvature_binormal, material_curvatures, material_frames
+from shellform.effects.rod_kinematics import curvature_binormal, material_curvatures, material_frames
 from shellform.rods.section import circular_section, section_of
 from shellform.rods.network import build_rod_system
 from shellform.rods.shapes import hollow_circle, rectangle, rectangle_torsion_constant, solid_circle

@@ -21,16 +21,16 @@ energy independent of its material frames: bending and twist are coupled only
 through the natural curvature and the reference twist. An anisotropic hinge
 sees its material frames whatever its natural curvature. The gradient and
 Hessian are exact, including the dependence of the time-parallel reference
-frames on the positions (:mod:`shellform.rods.hinge`); each material
+frames on the positions (:mod:`shellform.effects.rod_hinge`); each material
 curvature and its derivatives come from
-:func:`~shellform.rods.hinge.material_curvature_term`.
+:func:`~shellform.effects.rod_hinge.material_curvature_term`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..rods.hinge import (
+from .rod_hinge import (
     BinormalJacobian,
     HingeEffect,
     curvature_binormal_jacobian,
@@ -38,7 +38,7 @@ from ..rods.hinge import (
     material_curvature_term,
     material_curvature_value,
 )
-from ..rods.kinematics import curvature_binormal, dot, material_curvatures, material_frames
+from .rod_kinematics import curvature_binormal, dot, material_curvatures, material_frames
 from .base import LineResults
 from .rod_output import EdgeSections, edge_means
 
@@ -52,7 +52,7 @@ class RodBending(HingeEffect):
     Parameters
     ----------
     n_dof, frames, stencil, voronoi
-        As for :class:`~shellform.rods.hinge.HingeEffect`.
+        As for :class:`~shellform.effects.rod_hinge.HingeEffect`.
     EI : ndarray (h,)
         Bending stiffness [N m^2] of the material curvature ``omega_1``.
     natural_curvature : ndarray (h, 2, 2)

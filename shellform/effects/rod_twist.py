@@ -8,7 +8,7 @@ Voronoi length and ``tau_bar_i`` the natural twist. The twist rate is
 
 ``m_i`` depends on the positions; its exact gradient and Hessian at any trial
 state (not only at the stored one) come from the spherical-triangle form of
-the holonomy in :mod:`shellform.rods.kinematics`, so the Hessian of this
+the holonomy in :mod:`shellform.effects.rod_kinematics`, so the Hessian of this
 effect is exact, including the coupling of twist to bending that drives twist
 buckling.
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rods.hinge import HingeEffect, reference_twist_change
+from .rod_hinge import HingeEffect, reference_twist_change
 from .base import LineResults
 from .rod_output import edge_means
 
@@ -28,7 +28,7 @@ class RodTwisting(HingeEffect):
     Parameters
     ----------
     n_dof, frames, stencil, voronoi
-        As for :class:`~shellform.rods.hinge.HingeEffect`.
+        As for :class:`~shellform.effects.rod_hinge.HingeEffect`.
     GJ : ndarray (h,)
         Torsional stiffness [N m^2].
     natural_twist : ndarray (h,)

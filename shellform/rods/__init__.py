@@ -1,7 +1,11 @@
-"""Discrete elastic rods: kinematics, hinge derivatives, networks and boundary conditions."""
+"""Discrete elastic rods: sections, networks, boundary conditions and load stepping.
 
+The kinematics and energies of a rod are effects (:mod:`shellform.effects.rod_kinematics`,
+:mod:`shellform.effects.rod_hinge` and the ``rod_*`` energies).
+"""
+
+from ..effects.rod_kinematics import ReferenceFrames
 from .grids import square_grid_polylines
-from .kinematics import ReferenceFrames
 from .network import Rod, RodNetwork, build_rod_system
 from .node_path import NodePath
 from .polylines import resample_polyline, stack_polylines

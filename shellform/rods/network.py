@@ -39,7 +39,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import MechanismError, ModelError
 from ..model import Structure, broadcast_property
-from .kinematics import ReferenceFrames
+from ..effects.rod_kinematics import ReferenceFrames
 from .rod_arrays import RodArrays, rod_arrays
 from .section import RestShape, RodSection
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..model import broadcast_property
-from .kinematics import (
+from ..effects.rod_kinematics import (
     curvature_binormal,
     material_curvatures,
     material_frames,

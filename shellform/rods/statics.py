@@ -1,7 +1,7 @@
 """Static equilibrium of rod networks in load steps.
 
 Rod effects carry reference frames from one accepted state to the next
-(:mod:`shellform.rods.kinematics`). Static Newton (:func:`solve_static`) works
+(:mod:`shellform.effects.rod_kinematics`). Static Newton (:func:`solve_static`) works
 on a rod network as it is: within one solve the stored frames stay put and the
 energy is one smooth function of ``q``. Large motions are better taken in
 steps, accepting each converged state (:meth:`System.accept`), so that the

@@ -23,7 +23,7 @@ Conventions (Bergou et al. 2008): curvature binormal
 ``kb = 2 t^0 x t^1 / (1 + t^0 . t^1)``; material curvature of edge ``j`` at the
 hinge ``omega^j = (kb . m2^j, -kb . m1^j)``; twist
 ``tau = theta^1 - theta^0 + m`` with ``m`` the reference twist
-(:mod:`shellform.rods.kinematics`).
+(:mod:`shellform.effects.rod_kinematics`).
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..effects.base import Effect, element_pattern, scatter
-from .kinematics import dot, skew
+from .base import Effect, element_pattern, scatter
+from .rod_kinematics import dot, skew
 
 _I3 = np.eye(3)
 
@@ -112,7 +112,7 @@ def reference_twist_change(t0, t1, s0, s1, hessian=True):
     """Change of the reference twist from the stored state, with derivatives over ``(t0, t1)``.
 
     ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
-    :mod:`shellform.rods.kinematics`), so that ``m(q) = m_stored + beta``.
+    :mod:`shellform.effects.rod_kinematics`), so that ``m(q) = m_stored + beta``.
 
     Returns
     -------
