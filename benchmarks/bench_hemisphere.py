@@ -14,6 +14,9 @@
 
 ``--newton-only`` also runs the segment's implicit Euler with a Newton
 iteration (tangent and factorisation) in every step (``keep_factor=False``).
+``--chord-rates off 0.02 0.1 0.5 [--sizes 5 11] [--repeat 2]`` traces whole curves
+with the kept factor of implicit Euler (the dynamics through the snaps) off or
+at each chord rate, alternating fresh processes.
 
 Times are wall-clock on whatever machine runs it (the reference machine has
 2 cores shared with other work).
@@ -97,6 +100,45 @@ def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3, newton_only=False):
     return out
 
 
+def chord_rate_curve(variant: str, n: int, dl: float) -> dict:
+    """The whole curve with implicit Euler's kept factor off (``variant == "off"``) or at a chord rate."""
+    import shellform.solvers.implicit_euler as ie
+
+    if variant == "off":
+        step = ie._Stepper.step
+
+        def without_kept_factor(self, *args):
+            self.kept = None
+            return step(self, *args)
+
+        ie._Stepper.step = without_kept_factor
+    else:
+        ie.CHORD_RATE = float(variant)
+    out = whole_curve(n, dl)
+    return {"variant": variant, "n": n, "trace_s": out["trace_s"], "thresholds": out["thresholds"],
+            "max_force": out["max_force"], "newton_iterations": out["newton_iterations"], "steps": out["steps"]}
+
+
+def chord_rates(variants, sizes, dl, repeat):
+    """Each variant in its own process, alternating; the table of the median trace times."""
+    import statistics
+    import subprocess
+    import sys
+
+    runs = {}
+    for _ in range(repeat):
+        for n in sizes:
+            for v in variants:
+                out = subprocess.run([sys.executable, __file__, "--one-chord-rate", v, "--n", str(n), "--dl", str(dl)],
+                                     capture_output=True, text=True, check=True)
+                runs.setdefault((n, v), []).append(json.loads(out.stdout.splitlines()[-1]))
+    print("| n | chord rate | trace [s] (median) | Newton iterations | thresholds |")
+    print("|---:|---|---:|---:|---|")
+    for (n, v), rs in runs.items():
+        print(f"| {n} | {v} | {statistics.median(r['trace_s'] for r in rs):.1f} | {rs[0]['newton_iterations']} | "
+              f"{', '.join(f'{t:.4f}' for t in rs[0]['thresholds'])} |", flush=True)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=11)
@@ -106,8 +148,19 @@ def main(argv=None):
     p.add_argument("--skip-dynamic", action="store_true")
     p.add_argument("--newton-only", action="store_true",
                    help="also run the segment's implicit Euler without the kept factor (keep_factor=False)")
+    p.add_argument("--chord-rates", nargs="+", default=None,
+                   help="whole curves with implicit Euler's kept factor 'off' or at these chord rates instead")
+    p.add_argument("--sizes", type=int, nargs="+", default=[5, 11], help="n of the --chord-rates curves")
+    p.add_argument("--repeat", type=int, default=2, help="runs of each --chord-rates variant")
+    p.add_argument("--one-chord-rate", default=None, help=argparse.SUPPRESS)
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = p.parse_args(argv)
+    if args.one_chord_rate is not None:
+        print(json.dumps(chord_rate_curve(args.one_chord_rate, args.n, args.dl * 1e-3)))
+        return {}
+    if args.chord_rates:
+        chord_rates(args.chord_rates, args.sizes, args.dl, args.repeat)
+        return {}
     out = {}
     if not args.skip_curve:
         out["mode_I_whole_curve"] = whole_curve(args.n, args.dl * 1e-3)
