@@ -17,6 +17,10 @@ class MechanismError(ModelError):
     """The structure can move as a rigid body: supports do not restrain it."""
 
 
+class CheckpointMismatch(ModelError):
+    """A checkpoint that cannot be resumed from: of another model or other settings, or unreadable."""
+
+
 class SceneError(ShellformError, ValueError):
     """A scene file is malformed; the message names the key and the problem."""
 

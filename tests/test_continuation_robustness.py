@@ -13,7 +13,8 @@ from test_continuation_models import (
 
 from shellform import Structure, build_system
 from shellform.errors import MechanismError, ModelError
-from shellform.solvers.continuation import Checkpoint, PathPoint, trace_path
+from shellform.io.checkpoint import CheckpointFile
+from shellform.solvers.continuation import PathPoint, trace_path
 
 Z_CR = L * np.tan(THETA_CR)
 
@@ -183,10 +184,10 @@ def test_checkpoint_and_resume_reproduce_an_uninterrupted_run(tmp_path):
             raise Crash  # an interruption the solver does not catch
 
     with pytest.raises(Crash):
-        trace_path(system, "displacement", checkpoint=Checkpoint(ck, every=5), callback=crash, **opts)
+        trace_path(system, "displacement", checkpoint=CheckpointFile(ck, every=5), callback=crash, **opts)
     assert ck.exists()
     resumed_from = []
-    res = trace_path(system, "displacement", checkpoint=Checkpoint(ck, every=5, resume=True),
+    res = trace_path(system, "displacement", checkpoint=CheckpointFile(ck, every=5, resume=True),
                      callback=lambda pt: resumed_from.append(pt.step), **opts)
     assert resumed_from[0] == 26  # continued after the last checkpoint (step 25), not from the start
     assert res.steps == full.steps and res.n_points == full.n_points
@@ -201,4 +202,4 @@ def test_checkpoint_and_resume_reproduce_an_uninterrupted_run(tmp_path):
     assert np.allclose(np.array(res.states), np.array(full.states), atol=1e-12)
     # a checkpoint of another problem is refused
     with pytest.raises(ModelError, match="different problem"):
-        trace_path(von_mises("displacement"), "displacement", checkpoint=Checkpoint(ck, resume=True), **opts)
+        trace_path(von_mises("displacement"), "displacement", checkpoint=CheckpointFile(ck, resume=True), **opts)

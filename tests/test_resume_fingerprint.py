@@ -21,10 +21,12 @@ from test_continuation_models import P_CR, von_mises
 import shellform as sf
 from shellform.cli import main
 from shellform.errors import ModelError, SceneError
-from shellform.io.checkpoint import CheckpointMismatch, model_fingerprint
+from shellform.errors import CheckpointMismatch
+from shellform.fingerprint import model_fingerprint
 from shellform.analyses import run_scene
 from shellform.scene import parse_scene
-from shellform.solvers.continuation import Checkpoint, trace_path
+from shellform.io.checkpoint import CheckpointFile
+from shellform.solvers.continuation import trace_path
 
 ROOT = Path(__file__).parents[1]
 
@@ -78,7 +80,7 @@ def _interrupted_path(tmp_path, **opts):
             raise Crash
 
     with pytest.raises(Crash):
-        trace_path(von_mises("load"), "load", checkpoint=Checkpoint(ck, every=5), callback=crash, **{**OPTS, **opts})
+        trace_path(von_mises("load"), "load", checkpoint=CheckpointFile(ck, every=5), callback=crash, **{**OPTS, **opts})
     return ck
 
 
@@ -89,19 +91,19 @@ def test_continuation_refuses_a_checkpoint_of_a_stiffer_structure(tmp_path):
         if hasattr(e, "EA"):
             e.EA = 2.0 * e.EA  # EA doubled: the same sizes, another structure
     with pytest.raises(CheckpointMismatch, match="member properties differ") as info:
-        trace_path(stiffer, "load", checkpoint=Checkpoint(ck, resume=True), **OPTS)
+        trace_path(stiffer, "load", checkpoint=CheckpointFile(ck, resume=True), **OPTS)
     assert isinstance(info.value, ModelError) and "nodes" not in str(info.value)
 
 
 def test_continuation_refuses_other_settings_and_names_them(tmp_path):
     ck = _interrupted_path(tmp_path)
     with pytest.raises(CheckpointMismatch, match="analysis option rtol differs: 1e-10 in the checkpoint, 1e-08 now"):
-        trace_path(von_mises("load"), "load", checkpoint=Checkpoint(ck, resume=True), rtol=1e-8, **OPTS)
+        trace_path(von_mises("load"), "load", checkpoint=CheckpointFile(ck, resume=True), rtol=1e-8, **OPTS)
     with pytest.raises(CheckpointMismatch, match="analysis option max_displacement differs"):
-        trace_path(von_mises("load"), "load", checkpoint=Checkpoint(ck, resume=True), **{**OPTS, "max_displacement": 0.9})
+        trace_path(von_mises("load"), "load", checkpoint=CheckpointFile(ck, resume=True), **{**OPTS, "max_displacement": 0.9})
     # a larger step budget is what a resume is for
     full = trace_path(von_mises("load"), "load", **{**OPTS, "max_steps": 60})
-    res = trace_path(von_mises("load"), "load", checkpoint=Checkpoint(ck, resume=True), **{**OPTS, "max_steps": 60})
+    res = trace_path(von_mises("load"), "load", checkpoint=CheckpointFile(ck, resume=True), **{**OPTS, "max_steps": 60})
     assert res.success and np.array_equal(res["lam"], full["lam"])
     assert res.state_steps == full.state_steps
     assert np.array_equal(np.array(res.states), np.array(full.states))
@@ -116,10 +118,10 @@ def test_a_checkpoint_without_fingerprint_or_not_a_checkpoint_is_refused(tmp_pat
     arrays["meta"] = np.array(json.dumps(meta))
     np.savez(ck, **arrays)
     with pytest.raises(CheckpointMismatch, match="does not say which model"):
-        trace_path(von_mises("load"), "load", checkpoint=Checkpoint(ck, resume=True), **OPTS)
+        trace_path(von_mises("load"), "load", checkpoint=CheckpointFile(ck, resume=True), **OPTS)
     ck.write_text("not a checkpoint")
     with pytest.raises(CheckpointMismatch, match="cannot be read"):
-        trace_path(von_mises("load"), "load", checkpoint=Checkpoint(ck, resume=True), **OPTS)
+        trace_path(von_mises("load"), "load", checkpoint=CheckpointFile(ck, resume=True), **OPTS)
 
 
 SPRING = {

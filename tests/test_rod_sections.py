@@ -11,7 +11,7 @@ from shellform.rods import RestShape, RodNetwork, RodSection, stack_polylines
 from shellform.effects.rod_kinematics import curvature_binormal, material_curvatures, material_frames
 from shellform.rods.section import circular_section, section_of
 from shellform.rods.network import build_rod_system
-from shellform.rods.shapes import hollow_circle, rectangle, rectangle_torsion_constant, solid_circle
+from shellform.geometry.sections import hollow_circle, rectangle, rectangle_torsion_constant, solid_circle
 from shellform.rods.statics import solve_incremental
 from shellform.validation.cases_rods import (
     critical_parameter,

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 
-from ..io.checkpoint import CheckpointMismatch
+from ..errors import CheckpointMismatch
 from ..io.files import output_folder, output_lock, remove_stale_temporaries, write_bytes
 from ..io.summary import RunRecord
 from ..io.units import units_block

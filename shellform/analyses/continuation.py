@@ -83,7 +83,8 @@ def run_continuation_case(system, out_dir, control: str = "load", files: PathFil
         JSON-ready outcome, events and file names (also written to
         ``{name}_events.json``).
     """
-    from ..solvers.continuation import Checkpoint, trace_path
+    from ..io.checkpoint import CheckpointFile
+    from ..solvers.continuation import trace_path
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -98,7 +99,7 @@ def run_continuation_case(system, out_dir, control: str = "load", files: PathFil
         return callback(pt) if callback is not None else None
 
     result = trace_path(system, control, callback=on_point,
-                        checkpoint=Checkpoint(ck, files.checkpoint_every, files.resume), **options)
+                        checkpoint=CheckpointFile(ck, files.checkpoint_every, files.resume), **options)
     summary = write_path_files(result, system, out, files, progress)
     if progress is not None:
         progress(f"{result.message} ({result.steps} steps, {len(result.events)} events)")

@@ -11,8 +11,9 @@ import numpy as np
 from .. import scene as scenes
 from ..errors import SceneError
 from ..io import write_series
-from ..io.checkpoint import (CheckpointMismatch, check_fingerprint, fingerprint_record, load_checkpoint,
-                            model_fingerprint, save_checkpoint)
+from ..errors import CheckpointMismatch
+from ..fingerprint import check_fingerprint, fingerprint_record, model_fingerprint
+from ..io.checkpoint import load_checkpoint, save_checkpoint
 from ..io.table import plot_curve, write_csv
 from ..model import AXES
 from ..progress import Progress

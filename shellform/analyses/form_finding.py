@@ -36,7 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MechanismError, ModelError, SceneError
-from ..io.checkpoint import CheckpointMismatch, load_checkpoint, save_checkpoint
+from ..errors import CheckpointMismatch
+from ..io.checkpoint import load_checkpoint, save_checkpoint
 from ..io.net_meshes import write_net_meshes
 from ..io.summary import write_json
 

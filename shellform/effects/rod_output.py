@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rods.shapes import extreme_fibre_stress
+from ..geometry.sections import extreme_fibre_stress
 
 
 def edge_means(per_side: np.ndarray, hinge_edges: np.ndarray, n_edges: int) -> np.ndarray:

@@ -25,7 +25,7 @@ from ..effects.rod_kinematics import (
     space_parallel_directors,
 )
 from .section import RestShape, RodSection
-from .shapes import SectionShape
+from ..geometry.sections import SectionShape
 
 
 @dataclass(frozen=True)

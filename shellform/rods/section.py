@@ -2,7 +2,7 @@
 
 :class:`RodSection` holds the stiffness and inertia per unit length,
 :class:`RestShape` the shape in which the rod carries no stress;
-:func:`section_of` gives the section of a shape (:mod:`shellform.rods.shapes`)
+:func:`section_of` gives the section of a shape (:mod:`shellform.geometry.sections`)
 in a material, :func:`circular_section` that of a solid circular rod.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ModelError
-from .shapes import SectionShape, solid_circle
+from ..geometry.sections import SectionShape, solid_circle
 
 
 @dataclass(frozen=True)

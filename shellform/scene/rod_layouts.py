@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import ModelError, SceneError
 from ..rods.mesh_lines import chain_directors, edge_chains, vertex_normals
 from ..rods.section import RestShape, RodSection, section_of
-from ..rods.shapes import hollow_circle, rectangle, solid_circle
+from ..geometry.sections import hollow_circle, rectangle, solid_circle
 from .error_keys import scene_error_at
 
 #: the shape keys of each section

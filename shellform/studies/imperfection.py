@@ -34,7 +34,8 @@ import numpy as np
 
 from ..errors import SceneError, ShellformError
 from ..io import write_json, write_mode
-from ..io.checkpoint import digest, load_checkpoint, save_checkpoint
+from ..fingerprint import digest
+from ..io.checkpoint import load_checkpoint, save_checkpoint
 from ..io.files import output_folder, output_lock
 from ..io.table import write_csv
 from .runner import Runner

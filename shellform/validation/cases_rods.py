@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 from ..model import Structure
 from ..rods.network import RodNetwork, build_rod_system
 from ..rods.section import RestShape, RodSection, section_of
-from ..rods.shapes import rectangle
+from ..geometry.sections import rectangle
 from ..rods.statics import solve_incremental
 from ..solvers.newton import solve_static
 from .reference import (

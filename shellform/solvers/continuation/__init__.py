@@ -33,7 +33,6 @@ algebra), ``start`` (the first point, the metric and the first step), ``correcto
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Callable
 
 import numpy as np
@@ -58,7 +57,7 @@ def trace_path(
     p0: float = 0.0,
     direction: int = 1,
     callback: Callable[[PathPoint], bool | None] | None = None,
-    checkpoint: Checkpoint | str | os.PathLike | None = None,
+    checkpoint: Checkpoint | None = None,
     options: ContinuationOptions | None = None,
     **overrides,
 ) -> ContinuationResult:
@@ -82,11 +81,11 @@ def trace_path(
         Called with a :class:`PathPoint` after every converged point (progress
         report, streaming output). Returning True or raising StopIteration
         ends the run cleanly.
-    checkpoint : Checkpoint or path, optional
-        Where (a file, ``.npz``) and how often to save enough to continue the
-        path, and whether to resume from that file when it exists
-        (:class:`Checkpoint`; a path alone: every 10 steps, no resume). A
-        resumed run keeps the table, events and states of the earlier run.
+    checkpoint : Checkpoint, optional
+        Where and how often to save enough to continue the path, and whether
+        to resume from a saved state when there is one (a
+        :class:`shellform.io.checkpoint.CheckpointFile`). A resumed run keeps
+        the table, events and states of the earlier run.
     options : ContinuationOptions, optional
         Typed options (defaults: :class:`ContinuationOptions`).
     **overrides
@@ -98,11 +97,12 @@ def trace_path(
     ContinuationResult
     """
     tracer = Tracer(system, control, make_options(options, **overrides))
-    if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
-        checkpoint = Checkpoint(checkpoint)
+    if checkpoint is not None and not callable(getattr(checkpoint, "write", None)):
+        raise TypeError(f"checkpoint: expected a Checkpoint such as shellform.io.checkpoint.CheckpointFile(path, "
+                        f"every, resume), got {type(checkpoint).__name__}")
     first = None
-    if checkpoint is not None and checkpoint.resume and os.path.exists(checkpoint.path):
-        load(tracer, checkpoint.path)
+    if checkpoint is not None and checkpoint.resume and checkpoint.exists():
+        load(tracer, checkpoint)
     else:
         q0 = system.q_ref if q0 is None else np.asarray(q0, dtype=float)
         first = start(tracer, q0, p0, direction)

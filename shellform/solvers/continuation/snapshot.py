@@ -2,47 +2,46 @@
 
 The tracer's scalars, its path table, events and states, the history of effects
 that carry one (rod reference frames) and a fingerprint of the model and the
-settings that change the answer. Written and read through
-:mod:`shellform.io.checkpoint`, the one place that writes checkpoint files.
+settings that change the answer. The solver never touches a file: it hands
+the arrays to the checkpoint it is given (a :class:`Checkpoint`, for example
+:class:`shellform.io.checkpoint.CheckpointFile`), and reads them back from it.
 """
 
 from __future__ import annotations
 
 import json
-import os
-from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from ...io.checkpoint import (CheckpointMismatch, check_fingerprint, fingerprint_record, model_fingerprint,
-                              open_checkpoint, save_checkpoint)
+from ...errors import CheckpointMismatch
+from ...fingerprint import check_fingerprint, fingerprint_record, model_fingerprint
 from .results import PathEvent
 
 CHECKPOINT_VERSION = 1
 
 
-@dataclass(frozen=True)
-class Checkpoint:
-    """Where and how often a continuation run saves what it needs to go on.
+class Checkpoint(Protocol):
+    """Where a continuation run saves what it needs to go on (:class:`shellform.io.checkpoint.CheckpointFile`).
 
-    Attributes
-    ----------
-    path : path
-        File (``.npz``) written every ``every`` accepted steps and at the end.
-    every : int
-        Accepted steps between two checkpoints (0: only at the end).
-    resume : bool
-        Continue from ``path`` if that file exists (the options must be the
-        same as in the first run).
+    ``every``: accepted steps between two saves (0: only at the end);
+    ``resume``: continue from a saved state when there is one; ``exists()``:
+    whether there is; ``write(**arrays)``: save named arrays; ``read()``: the
+    saved arrays, as a context manager with ``files`` and item access.
     """
 
-    path: str | os.PathLike
-    every: int = 10
-    resume: bool = False
+    every: int
+    resume: bool
+
+    def exists(self) -> bool: ...
+
+    def write(self, **arrays) -> None: ...
+
+    def read(self): ...
 
 
-def save(tr, path):
-    """Write the tracer's state, its path so far and a fingerprint of the model and the settings to ``path``."""
+def save(tr, checkpoint: Checkpoint):
+    """Save the tracer's state, its path so far and a fingerprint of the model and the settings."""
     meta = {
         "version": CHECKPOINT_VERSION, "control": tr.control, "n_dof": int(tr.system.n_dof),
         "n_free": int(tr.free.size), "step": int(tr.step), "branch": int(tr.branch),
@@ -73,14 +72,14 @@ def save(tr, path):
     settings = tr.o.settings()
     settings.update(control=tr.control, monitors=sorted(tr.monitors))
     meta["fingerprint"] = json.loads(fingerprint_record(model_fingerprint(tr.system), settings))
-    save_checkpoint(path, meta=np.array(json.dumps(meta)), q=tr.q, t_du=tr.t_du, **arrays)
+    checkpoint.write(meta=np.array(json.dumps(meta)), q=tr.q, t_du=tr.t_du, **arrays)
 
 
-def load(tr, path):
+def load(tr, checkpoint: Checkpoint):
     """Restore the tracer from a checkpoint written by :func:`save`; a checkpoint of another model or
     other settings is refused, naming what differs."""
-
-    with open_checkpoint(path) as z:
+    path = getattr(checkpoint, "path", "checkpoint")
+    with checkpoint.read() as z:
         meta = json.loads(str(z["meta"]))
         if meta.get("version") != CHECKPOINT_VERSION:
             raise CheckpointMismatch(f"checkpoint {path}: unsupported version {meta.get('version')}")

@@ -261,7 +261,7 @@ class Tracer:
             while self.step < o.max_steps:
                 stop = self.advance(callback)
                 if checkpoint is not None and checkpoint.every and self.step % checkpoint.every == 0:
-                    save(self, checkpoint.path)
+                    save(self, checkpoint)
                 if stop is not None:
                     status, message = stop
                     break
@@ -273,7 +273,7 @@ class Tracer:
             status, message, success = "failed", str(exc), False
         self.finished = (status, message, success)
         if checkpoint is not None:
-            save(self, checkpoint.path)
+            save(self, checkpoint)
         self.timer.t["total"] = time.perf_counter() - self.t_created
         return self.result(success, message, status)
 
