@@ -227,3 +227,25 @@ def test_system_pattern_is_the_sorted_set_of_its_triplets():
     dense = np.zeros((n_rows, n_cols))
     np.add.at(dense, (rows, cols), vals)
     assert np.allclose(P.matrix(vals).toarray(), dense, rtol=0, atol=1e-13)
+
+
+def test_a_failed_cholesky_leaves_its_analysis_for_the_next():
+    """Past a critical point Cholesky fails at every other trial: the analysis it reused goes back
+    to the factor it came from (which can no longer solve) and serves the next factorisation."""
+    from unittest import mock
+
+    A = laplacian_3d(30)
+    F = CholeskyFactor(A)
+    indefinite = sp.csr_matrix(A - 3.0 * sp.identity(A.shape[0]), copy=True)
+    indefinite = sp.csr_matrix((indefinite.data, indefinite.indices, indefinite.indptr), shape=A.shape)
+    assert np.array_equal(indefinite.indices, A.indices)
+    with pytest.raises(SingularMatrixError):
+        CholeskyFactor(indefinite, previous=F)
+    with pytest.raises(SingularMatrixError):
+        F.solve(np.ones(A.shape[0]))  # its values were overwritten
+    from cvxopt import cholmod
+
+    with mock.patch.object(cholmod, "symbolic", side_effect=AssertionError("analysed again")):
+        G = CholeskyFactor(2.0 * A, previous=F)
+    x = G.solve(np.ones(A.shape[0]))
+    assert np.allclose(2.0 * A @ x, 1.0)

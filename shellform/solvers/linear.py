@@ -403,7 +403,10 @@ class CholeskyFactor:
         # tangent is exactly zero, and analysed as if the rope were taut it
         # fills the factor all the same (see ZERO_SHARE).
         needed = lower & ((A.data != 0.0) | on_diagonal)
+        self._stale = False
+        reused = False
         if same_pattern and not np.any(needed & ~previous._analysed) and _zero_share(previous._analysed, needed) <= ZERO_SHARE:
+            reused = True
             # the previous analysis covers these nonzeros: reuse it and take over its storage
             self._M, self._symbolic = previous._M, previous._symbolic
             self._analysed, self._keep = previous._analysed, previous._keep
@@ -424,7 +427,13 @@ class CholeskyFactor:
         try:
             cholmod.numeric(self._M, self._symbolic)
         except ArithmeticError as exc:
-            # CHOLMOD reports the column where a pivot was not positive
+            # CHOLMOD reports the column where a pivot was not positive. A reused analysis goes
+            # back to the factor it came from, whose values it no longer holds, so that the next
+            # factorisation of the pattern still reuses it (past a critical point Cholesky fails
+            # at every other trial point of an event's location)
+            if reused:
+                previous._M, previous._symbolic = self._M, self._symbolic
+                previous._stale = True
             self._symbolic = None
             raise SingularMatrixError(
                 f"Cholesky factorisation failed (pivot {exc} of the reordered matrix is not positive): "
@@ -435,7 +444,7 @@ class CholeskyFactor:
         """``A^{-1} b`` for one right-hand side or one per column."""
         from cvxopt import cholmod, matrix
 
-        if self._symbolic is None:
+        if self._symbolic is None or self._stale:
             raise SingularMatrixError("this Cholesky factor's storage was reused by a later factorisation")
         b = np.asarray(b, dtype=float)
         B = matrix(b.reshape(b.shape[0], -1))

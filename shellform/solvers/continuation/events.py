@@ -121,7 +121,7 @@ def _factor_alive(F) -> bool:
         return False
     if getattr(F, "_solver", True) is None or getattr(F, "_symbolic", True) is None:
         return False
-    return True
+    return not getattr(F, "_stale", False)
 
 
 def _needed_width(kind, lo: _Trial, hi: _Trial, rtol: float) -> float:

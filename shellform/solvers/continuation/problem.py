@@ -142,7 +142,7 @@ class Problem:
                     self._chol_prev = F
                     return F
                 except SingularMatrixError:
-                    self._chol_prev = None
+                    pass  # the analysis stays with the previous factor for the next attempt
             if self.linear_solver == "ldl":
                 try:
                     F = LDLFactor(K, previous=self._ldl_prev)
