@@ -73,6 +73,10 @@ class Table:
 
 #: limits of a scene: beyond them a value is a typing error or a unit off, and the arithmetic (squares of
 #: lengths, products of stiffness and strain) or the memory of the run would fail long before a result
+#: bounds shared by many keys: ``Key(..., **POSITIVE)``
+POSITIVE = dict(minimum=0.0, exclusive_minimum=True)
+NONNEGATIVE = dict(minimum=0.0)
+
 LIMITS = {
     "text": 200,            # characters of a string (title, name, ...) unless its key says otherwise
     "list": 100,            # entries of a list of strings
