@@ -138,7 +138,7 @@ class Problem:
         try:
             if self.linear_solver == "ldl" and self.definite_hint():
                 try:
-                    F = CholeskyFactor(K, previous=self._chol_prev)
+                    F = CholeskyFactor(K, previous=self._chol_prev, stored=True)
                     self._chol_prev = F
                     return F
                 except SingularMatrixError:
