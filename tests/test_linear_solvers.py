@@ -249,3 +249,25 @@ def test_a_failed_cholesky_leaves_its_analysis_for_the_next():
         G = CholeskyFactor(2.0 * A, previous=F)
     x = G.solve(np.ones(A.shape[0]))
     assert np.allclose(2.0 * A @ x, 1.0)
+
+
+def test_cholesky_of_every_stored_entry_needs_no_new_analysis_when_a_zero_turns_nonzero():
+    from unittest import mock
+
+    from cvxopt import cholmod
+
+    A = laplacian_3d(30)
+    D = A.toarray()
+    for i, j in [(0, 3), (30, 33), (60, 63)]:  # a few incidental zeros (under ZERO_SHARE of the entries)
+        D[i, j] = D[j, i] = 0.0
+    B = sp.csr_matrix((D[A.nonzero()], A.indices, A.indptr), shape=A.shape)  # A's pattern, the zeros stored
+    assert np.count_nonzero(B.data == 0.0) == 6
+    F = CholeskyFactor(B, stored=True)
+    with mock.patch.object(cholmod, "symbolic", side_effect=AssertionError("analysed again")):
+        G = CholeskyFactor(A, previous=F, stored=True)
+    assert np.allclose(A @ G.solve(np.ones(A.shape[0])), 1.0)
+    # without it, the entries that became nonzero need a new analysis
+    F = CholeskyFactor(B)
+    with mock.patch.object(cholmod, "symbolic", side_effect=AssertionError("analysed again")):
+        with pytest.raises(AssertionError):
+            CholeskyFactor(A, previous=F)
