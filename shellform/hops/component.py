@@ -1,0 +1,63 @@
+"""What every Hops component is: its inputs and outputs, the scene it builds, its reply; shared helpers."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .protocol import InputError
+
+@dataclass
+class Built:
+    """A scene built from a component's inputs, and what its reply needs besides the run's files."""
+
+    scene: dict
+    #: scene key prefix -> input name, to name the input in a scene error
+    inputs: dict = field(default_factory=dict)
+    context: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Component:
+    name: str
+    description: str
+    inputs: tuple
+    outputs: tuple
+    build: object  # (values) -> Built
+    reply: object  # (Result, values, context) -> {output name: value}
+
+    def describe(self) -> dict:
+        return {"Uri": f"/{self.name}", "Name": self.name, "Nickname": self.name, "Description": self.description,
+                "Category": "shellform", "Subcategory": "analysis",
+                "Inputs": [p.describe() for p in self.inputs], "Outputs": [p.describe(True) for p in self.outputs],
+                "InputNames": [p.name for p in self.inputs], "OutputNames": [p.name for p in self.outputs]}
+
+
+def nearest_nodes(nodes: np.ndarray, points, tol: float, name: str) -> list[int]:
+    """The node at each point (within ``tol``)."""
+    from scipy.spatial import cKDTree
+
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    dist, idx = cKDTree(nodes).query(pts)
+    far = np.flatnonzero(dist > tol)
+    if far.size:
+        k = int(far[0])
+        x = pts[k]
+        raise InputError(name, f"item {k} at ({x[0]:.6g}, {x[1]:.6g}, {x[2]:.6g}) m is no node of the structure "
+                         f"(the nearest is {dist[k]:.3g} m away; tolerance {tol:.3g} m)")
+    return [int(i) for i in idx]
+
+
+def line_pairs(points, cells) -> list:
+    return [[points[a], points[b]] for a, b in cells]
+
+
+def report(summary: dict, keys) -> str:
+    return json.dumps({k: summary[k] for k in keys if k in summary}, indent=1, default=str)
+
+
+def cell_field(mesh, name, family="line"):
+    k = [i for i, c in enumerate(mesh.cells) if c.type == family][0]
+    return mesh.cell_data[name][k] if name in mesh.cell_data else None

@@ -1,0 +1,342 @@
+"""The form-finding components: FormFind, Lengths and Gridshell on a planform outline."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ModelError
+from .component import Built, Component, cell_field, line_pairs, nearest_nodes, report
+from .protocol import InputError, Param
+
+#: samples of a boundary curve that is not a polyline
+_BOUNDARY_SAMPLES = 256
+#: relative tolerance of the planform recognition (of the boundary's span)
+_SHAPE_TOL = 1.0e-6
+
+
+# -- geometry of the inputs --------------------------------------------------------------------
+
+
+def _curve_samples(curve) -> np.ndarray:
+    from ..io.rhino_import import curve_points
+
+    try:
+        return curve_points(curve)
+    except ModelError:
+        d = curve.Domain
+        return np.array([[p.X, p.Y, p.Z] for p in (curve.PointAt(float(t)) for t in
+                                                   np.linspace(d.T0, d.T1, _BOUNDARY_SAMPLES + 1))])
+
+
+def planform_geometry(curve, divisions, divisions_y) -> dict:
+    """The planform keys of a closed boundary curve in a horizontal plane.
+
+    A polyline through the four corners of its bounding box is a
+    ``rectangle``; a curve on the ellipse inscribed in its bounding box a
+    ``disk`` (equal axes) or an ``ellipse``. Other outlines are refused.
+    """
+    if not hasattr(curve, "PointAt"):
+        raise InputError("Boundary", f"expected a curve, got a {type(curve).__name__}")
+    if not curve.IsClosed:
+        raise InputError("Boundary", "is an open curve; a planform is a closed outline")
+    pts = _curve_samples(curve)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    span = float(np.max(hi - lo))
+    tol = _SHAPE_TOL * max(span, 1e-12)
+    if hi[2] - lo[2] > tol:
+        raise InputError("Boundary", "does not lie in a horizontal plane (z varies along it)")
+    z = float(lo[2])
+    corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    vertices = np.unique(np.round(pts[:, :2] / tol).astype(np.int64), axis=0)
+    is_box = len(vertices) == 4 and all(np.min(np.abs(pts[:, :2] - c).max(axis=1)) <= tol for c in corners)
+    if is_box:
+        geometry = {"type": "rectangle", "length_x": float(hi[0] - lo[0]), "length_y": float(hi[1] - lo[1]),
+                    "origin": [float(lo[0]), float(lo[1]), z], "n_i": divisions,
+                    "n_j": divisions if divisions_y is None else divisions_y}
+        return geometry
+    c = (lo + hi) / 2
+    a, b = (hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2
+    if a > 0 and b > 0:
+        off = np.abs(((pts[:, 0] - c[0]) / a) ** 2 + ((pts[:, 1] - c[1]) / b) ** 2 - 1.0).max()
+        if off <= 1e-5:
+            if divisions_y is not None:
+                raise InputError("DivisionsY", "applies to a rectangular boundary only")
+            center = [float(c[0]), float(c[1]), z]
+            if abs(a - b) <= tol:
+                return {"type": "disk", "radius": float(a), "n": divisions, "center": center}
+            return {"type": "ellipse", "a": float(a), "b": float(b), "n": divisions, "center": center}
+    raise InputError("Boundary", "is neither a rectangle with sides along x and y, nor a circle, nor an ellipse "
+                     "with axes along x and y; other planforms are not supported yet")
+
+
+# -- the form-finding inputs shared by FormFind, Lengths and Gridshell ---------------------------
+
+_FORM_INPUTS = (
+    Param("Boundary", "Curve", "Planform outline: a rectangle with sides along x and y, a circle or an ellipse "
+          "with axes along x and y, in a horizontal plane", "m"),
+    Param("Divisions", "Integer", "Quads per side of the grid (rectangle: along x; circle, ellipse: of the mapped "
+          "grid)", default=10, key="geometry.n_i"),
+    Param("DivisionsY", "Integer", "Rectangle: quads along y (default: Divisions)", optional=True,
+          key="geometry.n_j"),
+    Param("Supports", "Text", "Supported node sets of the grid, comma separated: boundary, corners, south, east, "
+          "north, west, sw, se, ne, nw; empty for none", default="boundary", key="supports.groups"),
+    Param("SupportPoints", "Point", "Further supported nodes: grid nodes at these points", "m", many=True,
+          optional=True, key="supports.nodes"),
+    Param("Slack", "Number", "Slack coefficient sc: rest length = (1 + sc) x planform edge length", default=0.0,
+          key="ropes.slack"),
+    Param("MassPerLength", "Number", "Rope mass, the load of the form", "kg/m", default=1.0,
+          key="ropes.mass_per_length"),
+    Param("NodeMass", "Number", "Point mass at every node, a further load", "kg", default=0.0,
+          key="masses.node_mass"),
+    Param("Scheme", "Text", "Relaxation scheme: implicit, rk4 or kinetic", default="implicit",
+          key="analysis.relaxation.scheme"),
+)
+_FORM_KEYS = {p.key: p.name for p in _FORM_INPUTS if p.key}
+_FORM_KEYS["geometry.n"] = "Divisions"
+_FORM_KEYS["geometry"] = "Boundary"
+_FORM_KEYS["supports"] = "Supports"
+
+
+def _text_list(value) -> list[str]:
+    if not isinstance(value, str):
+        return value  # the scene check names what is wrong with it
+    return [s.strip() for s in value.split(",") if s.strip()]
+
+
+def form_scene(v: dict, analysis: str) -> Built:
+    """The planform scene of the form-finding inputs."""
+    from ..scene.format import SCENE
+    from ..scene.schema import check_table
+    from ..errors import SceneError
+
+    if v["Boundary"] is None:
+        raise InputError("Boundary", "is required")
+    geometry = planform_geometry(v["Boundary"], v["Divisions"], v["DivisionsY"])
+    supports = []
+    groups = _text_list(v["Supports"])
+    if groups:
+        supports.append({"groups": groups})
+    if v["SupportPoints"]:
+        from ..mra.case import build_grid
+
+        try:
+            checked = check_table("geometry", geometry, SCENE.keys["geometry"])
+        except SceneError as exc:
+            raise InputError(_FORM_KEYS.get(exc.key, "Divisions"), str(exc)) from None
+        grid = build_grid({k: (w.tolist() if isinstance(w, np.ndarray) else w) for k, w in checked.items()
+                           if w is not None})
+        spacing = np.linalg.norm(np.diff(grid.nodes[grid.quads[:, :2]], axis=1), axis=2).min()
+        supports.append({"nodes": nearest_nodes(grid.nodes, v["SupportPoints"], 0.25 * spacing, "SupportPoints")})
+    if not supports:
+        raise InputError("Supports", "the net needs supports: give grid node sets or SupportPoints")
+    scene = {
+        "title": "from Grasshopper",
+        "geometry": geometry,
+        "supports": supports,
+        "ropes": {"slack": v["Slack"], "mass_per_length": v["MassPerLength"]},
+        "masses": {"node_mass": v["NodeMass"]},
+        "analysis": {"type": analysis, "relaxation": {"scheme": v["Scheme"], "checkpoint_interval": 1.0e6}},
+    }
+    return Built(scene, dict(_FORM_KEYS))
+
+
+def _rhino_mesh(points, quads):
+    import rhino3dm
+
+    mesh = rhino3dm.Mesh()
+    for p in np.asarray(points, dtype=float):
+        mesh.Vertices.AddPoint3d(float(p[0]), float(p[1]), float(p[2]))  # double precision
+    for f in np.asarray(quads, dtype=int):
+        mesh.Faces.AddFace(*map(int, f))
+    mesh.Normals.ComputeNormals()
+    return mesh
+
+
+# -- FormFind -----------------------------------------------------------------------------------
+
+_FORM_REPORT = ("converged", "message", "iterations", "rise", "n_slack_ropes", "tension_max", "total_weight",
+                "reaction_sum", "strain_max", "warnings", "wall_time_s")
+
+
+def _form_reply(result, v, context) -> dict:
+    hang = result.mesh("hanging.vtu")
+    lines = hang.cells_dict["line"]
+    x = hang.points
+    support = hang.point_data["support"] > 0
+    out = {
+        "HangingNet": line_pairs(x, lines),
+        "RopeForces": cell_field(hang, "tension"),
+        "Slack": cell_field(hang, "slack") > 0.5,
+        "SupportPoints": x[support],
+        "Reactions": hang.point_data["reaction"][support],
+        "Converged": result.converged,
+        "Report": report(result.summary, _FORM_REPORT),
+    }
+    if "inverted_shell.vtu" in result.files:
+        shell = result.mesh("inverted_shell.vtu")
+        out["Shell"] = _rhino_mesh(shell.points, shell.cells_dict["quad"])
+    return out
+
+
+FORM_FIND = Component(
+    "FormFind",
+    "Hang a rope net on a planform (MRA dynamic relaxation) and invert it into a shell.",
+    _FORM_INPUTS,
+    (
+        Param("HangingNet", "Line", "The ropes at the hanging equilibrium", "m", many=True),
+        Param("Shell", "Mesh", "The inverted shell: the grid's quads at the inverted positions", "m"),
+        Param("RopeForces", "Number", "Tension of every rope, in the order of HangingNet", "N", many=True),
+        Param("Slack", "Boolean", "Whether each rope is slack", many=True),
+        Param("SupportPoints", "Point", "The suspension points", "m", many=True),
+        Param("Reactions", "Vector", "Reaction at each suspension point", "N", many=True),
+        Param("Converged", "Boolean", "The relaxation came to rest"),
+        Param("Report", "Text", "Convergence report: message, iterations, rise, forces (JSON)"),
+    ),
+    lambda v: form_scene(v, "mra"),
+    _form_reply,
+)
+
+
+# -- Lengths ------------------------------------------------------------------------------------
+
+_LENGTH_INPUTS = _FORM_INPUTS + (
+    Param("LengthTolerance", "Number", "Relative tolerance of 'the same length'", default=0.01,
+          key="analysis.lengths.tolerance"),
+    Param("Target", "Number", "Count the ropes within the tolerance of this length", "m", optional=True,
+          key="analysis.lengths.target"),
+    Param("Control", "Boolean", "Drive the ropes towards Classes lengths", default=False,
+          key="analysis.lengths.control"),
+    Param("Classes", "Integer", "Length classes of the control", default=3, key="analysis.lengths.n_classes"),
+    Param("Rounds", "Integer", "Rounds of the control", default=4, key="analysis.lengths.rounds"),
+)
+
+
+def _lengths_scene(v: dict) -> Built:
+    built = form_scene(v, "mra")
+    lengths = {"tolerance": v["LengthTolerance"], "control": v["Control"], "n_classes": v["Classes"],
+               "rounds": v["Rounds"]}
+    if v["Target"] is not None:
+        lengths["target"] = v["Target"]
+    built.scene["analysis"]["lengths"] = lengths
+    built.inputs.update({p.key: p.name for p in _LENGTH_INPUTS if p.key})
+    return built
+
+
+def _lengths_reply(result, v, context) -> dict:
+    from ..mra.lengths import tolerance_classes
+
+    s = result.summary
+    tol = float(v["LengthTolerance"])
+    control = s.get("length_control")
+    name = "hanging_length_control.vtu" if control and "hanging_length_control.vtu" in result.files else "hanging.vtu"
+    hang = result.mesh(name)
+    length = cell_field(hang, "length")
+    if control:
+        centres = np.asarray(control["centres"], dtype=float)
+        label = np.argmin(np.abs(length[:, None] - centres[None, :]), axis=1)
+    else:
+        label = tolerance_classes(length, tol)
+        centres = np.array([length[label == j].mean() for j in range(label.max() + 1)])
+    reference = centres[label] if v["Target"] is None else np.full(len(length), float(v["Target"]))
+    conforming = np.abs(length - reference) <= tol * reference
+    return {
+        "HangingNet": line_pairs(hang.points, hang.cells_dict["line"]),
+        "RopeLengths": length,
+        "LengthClass": label,
+        "ClassLengths": centres,
+        "Conforming": conforming,
+        "ConformingCount": int(conforming.sum()),
+        "Converged": result.converged,
+        "Report": report(s, ("converged", "message", "rope_lengths", "length_control", "wall_time_s")),
+    }
+
+
+LENGTHS = Component(
+    "Lengths",
+    "Rope lengths of the found form, their length classes and how many conform (with length control if asked).",
+    _LENGTH_INPUTS,
+    (
+        Param("HangingNet", "Line", "The ropes (after the length control when asked)", "m", many=True),
+        Param("RopeLengths", "Number", "Length of every rope at equilibrium", "m", many=True),
+        Param("LengthClass", "Integer", "Class of every rope", many=True),
+        Param("ClassLengths", "Number", "Length of every class", "m", many=True),
+        Param("Conforming", "Boolean", "Rope within the tolerance of its class (of Target when given)", many=True),
+        Param("ConformingCount", "Integer", "Conforming ropes"),
+        Param("Converged", "Boolean", "The relaxation came to rest"),
+        Param("Report", "Text", "Length statistics and control rounds (JSON)"),
+    ),
+    _lengths_scene,
+    _lengths_reply,
+)
+
+
+# -- Gridshell ----------------------------------------------------------------------------------
+
+_GRIDSHELL_INPUTS = _FORM_INPUTS + (
+    Param("Radius", "Number", "Radius of the rods' solid circular section", "m", default=0.02, key="rods.radius"),
+    Param("E", "Number", "Young's modulus of the rods", "Pa", default=210.0e9, key="rods.E"),
+    Param("G", "Number", "Shear modulus of the rods (default E / 2.6)", "Pa", optional=True, key="rods.G"),
+    Param("Density", "Number", "Density of the rods (their weight adds to the net's)", "kg/m^3", default=0.0,
+          key="rods.density"),
+    Param("RestShape", "Text", "Rods straight when unstressed (bent into the form) or stress-free in it: "
+          "straight or found", default="straight", key="rods.rest_shape"),
+    Param("LoadFactorMax", "Number", "Stop tracing at this load factor", default=100.0,
+          key="analysis.buckling.load_factor_max"),
+    Param("MaxSteps", "Integer", "Continuation steps before stopping", default=60, key="analysis.buckling.max_steps"),
+    Param("ModeScale", "Number", "Largest nodal displacement of the drawn buckling mode", "m", default=0.1),
+)
+
+
+def _gridshell_scene(v: dict) -> Built:
+    built = form_scene(v, "form_and_buckle")
+    rods = {"radius": v["Radius"], "E": v["E"], "density": v["Density"], "rest_shape": v["RestShape"]}
+    if v["G"] is not None:
+        rods["G"] = v["G"]
+    built.scene["rods"] = rods
+    built.scene["analysis"]["buckling"] = {"load_factor_max": v["LoadFactorMax"], "max_steps": v["MaxSteps"]}
+    built.inputs.update({p.key: p.name for p in _GRIDSHELL_INPUTS if p.key})
+    return built
+
+
+def _gridshell_reply(result, v, context) -> dict:
+    b = result.summary.get("buckling") or {}
+    events = result.events
+    out = {"Converged": result.converged,
+           "Report": report(result.summary, ("converged", "message", "buckling", "warnings", "wall_time_s"))}
+    if events:
+        crit = result.mesh(events[0]["file"])
+        lines = crit.cells_dict["line"]
+        x = crit.points
+        out["CriticalLoadFactor"] = float(b["critical_load_factor"])
+        out["CriticalKind"] = str(b["critical_kind"])
+        out["BucklingMode"] = line_pairs(x + float(v["ModeScale"]) * crit.point_data["mode"], lines)
+        fields = {k: cell_field(crit, k) for k in ("axial_force", "bending_moment")}
+    else:
+        states = result.states("buckling_path.xdmf")
+        x = states.positions[-1]
+        lines = states.cells_nodes
+        fields = {k: states.cells[k][-1] if k in states.cells else None for k in ("axial_force", "bending_moment")}
+    out["Rods"] = line_pairs(x, lines)
+    out["AxialForce"] = fields["axial_force"]
+    out["BendingMoment"] = fields["bending_moment"]
+    return {k: w for k, w in out.items() if w is not None}
+
+
+GRIDSHELL = Component(
+    "Gridshell",
+    "Build a gridshell of elastic rods on the found form and trace its self-weight to the first critical point.",
+    _GRIDSHELL_INPUTS,
+    (
+        Param("CriticalLoadFactor", "Number", "Load factor on the self-weight at the first critical point (empty: "
+              "none up to LoadFactorMax)"),
+        Param("CriticalKind", "Text", "limit or bifurcation"),
+        Param("Rods", "Line", "Rod edges at the critical state (else at the last traced state)", "m", many=True),
+        Param("BucklingMode", "Line", "Rod edges moved by the buckling mode times ModeScale", "m", many=True),
+        Param("AxialForce", "Number", "Axial force of every rod edge, in the order of Rods", "N", many=True),
+        Param("BendingMoment", "Number", "Bending moment of every rod edge", "N m", many=True),
+        Param("Converged", "Boolean", "Form finding and tracing finished and converged"),
+        Param("Report", "Text", "Buckling summary (JSON)"),
+    ),
+    _gridshell_scene,
+    _gridshell_reply,
+)
