@@ -17,6 +17,7 @@ own axial stiffness, slack and mass.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -247,13 +248,8 @@ def hanging_net(grid: QuadGrid | MeshNet, supports: dict | list | None = None, o
         (``hanging_net(grid, supports, slack=0.05)``): they override those of ``options``.
     """
     o = replace(options or NetOptions(), **fields)
-    entries = [supports] if supports is None or isinstance(supports, dict) else list(supports)
-    chosen = [(*support_nodes(grid, e), (e or {}).get("dofs", "xyz")) for e in entries]
-    nodes_sup = np.unique(np.concatenate([c[0] for c in chosen]))
+    chosen, held_axes = _chosen_supports(grid, supports)
     lift = np.max([c[1] for c in chosen], axis=0)
-    held_axes = np.zeros((grid.n_nodes, 3), dtype=bool)
-    for nodes, _, dofs in chosen:
-        held_axes[np.ix_(nodes, parse_dofs(dofs, "support dofs"))] = True
     edges = grid.edges
     family = grid.edge_direction()
     order = np.argsort(family, kind="stable")
@@ -286,31 +282,64 @@ def hanging_net(grid: QuadGrid | MeshNet, supports: dict | list | None = None, o
     s.set_gravity(o.gravity)
     if o.loads is not None:
         s.add_load(np.arange(grid.n_nodes), np.asarray(o.loads, dtype=float), scaled=False)
-    net_rope = ~held & (cable < 0)
     cable_mass = float((mass_per_length * rest)[~held & (cable >= 0)].sum())
-    EA = _rope_stiffness(o, point_mass, rest[net_rope], order, cable_mass)
-    names = ((0, "ropes_i"), (1, "ropes_j")) if grid.structured else ((0, "ropes"),)
-    kept = []
-    for fam, name in names:
-        sel = np.flatnonzero((family == fam) & net_rope)
-        if sel.size:
-            s.add_ropes(edges[sel], EA=EA[sel], rest_length=rest[sel], mass_per_length=o.mass_per_length, name=name)
-            kept.append(sel)
-    for k, c in enumerate(o.cables):
-        sel = np.flatnonzero((cable == k) & ~held)
-        if sel.size:
-            s.add_ropes(edges[sel], EA=_cable_value(c, "EA", None, k), rest_length=rest[sel],
-                        mass_per_length=mass_per_length[sel], name=c.get("name") or f"cable_{k}")
-            kept.append(sel)
-    kept = np.concatenate(kept)
+    EA = _rope_stiffness(o, point_mass, rest[~held & (cable < 0)], order, cable_mass)
+    ropes = _RopeEdges(edges, family, cable, held, rest, mass_per_length)
+    kept = _add_rope_groups(s, o, ropes, EA, grid.structured)
     out_family = np.where(cable[kept] >= 0, CABLE_FAMILY, family[kept])
     for nodes, _, dofs in chosen:
         s.fix(nodes, dofs)
     all_dofs = {dofs for _, _, dofs in chosen}
+    nodes_sup = np.unique(np.concatenate([c[0] for c in chosen]))
     return HangingNet(grid=grid, structure=s, supports=nodes_sup, rope_edges=edges[kept], family=out_family,
                       info={"slack": sc[kept], "flat_length": flat_length[kept],
                             "held_ropes": edges[held], "support_dofs": all_dofs.pop() if len(all_dofs) == 1 else None,
                             "n_cable_ropes": int(np.count_nonzero(cable[kept] >= 0))})
+
+
+def _chosen_supports(grid, supports) -> tuple[list, np.ndarray]:
+    """Each support entry's nodes, lift and held components; and which components of every node are held."""
+    entries = [supports] if supports is None or isinstance(supports, dict) else list(supports)
+    chosen = [(*support_nodes(grid, e), (e or {}).get("dofs", "xyz")) for e in entries]
+    held_axes = np.zeros((grid.n_nodes, 3), dtype=bool)
+    for nodes, _, dofs in chosen:
+        held_axes[np.ix_(nodes, parse_dofs(dofs, "support dofs"))] = True
+    return chosen, held_axes
+
+
+class _RopeEdges(NamedTuple):
+    """The grid's edges as ropes: ends, family, edge cable (-1: none), held at both ends, rest length, mass."""
+
+    edges: np.ndarray
+    family: np.ndarray
+    cable: np.ndarray
+    held: np.ndarray
+    rest: np.ndarray
+    mass_per_length: np.ndarray
+
+
+def _add_rope_groups(s: Structure, o: NetOptions, r: _RopeEdges, EA: np.ndarray, structured: bool) -> np.ndarray:
+    """The net's ropes (one group per family of a structured grid) and each edge cable as groups of ``s``.
+
+    ``EA`` holds the stiffness of the net's own ropes, in edge order. Returns
+    the edges kept (all but the held ones), in the order of the groups.
+    """
+    net_rope = ~r.held & (r.cable < 0)
+    names = ((0, "ropes_i"), (1, "ropes_j")) if structured else ((0, "ropes"),)
+    kept = []
+    for fam, name in names:
+        sel = np.flatnonzero((r.family == fam) & net_rope)
+        if sel.size:
+            s.add_ropes(r.edges[sel], EA=EA[sel], rest_length=r.rest[sel], mass_per_length=o.mass_per_length,
+                        name=name)
+            kept.append(sel)
+    for k, c in enumerate(o.cables):
+        sel = np.flatnonzero((r.cable == k) & ~r.held)
+        if sel.size:
+            s.add_ropes(r.edges[sel], EA=_cable_value(c, "EA", None, k), rest_length=r.rest[sel],
+                        mass_per_length=r.mass_per_length[sel], name=c.get("name") or f"cable_{k}")
+            kept.append(sel)
+    return np.concatenate(kept)
 
 
 def _cable_value(cable: dict, key: str, default, k: int):
