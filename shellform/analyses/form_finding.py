@@ -145,14 +145,13 @@ def _resume_state(checkpoint: RelaxationCheckpoint, params: dict, resume: bool, 
 # -- the files of a found form -----------------------------------------------------------------
 
 
-def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, q0: np.ndarray | None = None,
-                 v0: np.ndarray | None = None, callback=None, export=None,
-                 summary_file: str | None = "summary.json", grid=None) -> dict:
+def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, export=None,
+                 summary_file: str | None = "summary.json", **solve) -> dict:
     """Form-find one case and write its results.
 
     Parameters
     ----------
-    params, progress, q0, v0, callback, grid
+    params, progress
         See :func:`shellform.mra.solve_mra_case`.
     out_dir : path-like
         Directory for ``hanging.vtu``, ``inverted.vtu`` and ``summary.json``.
@@ -163,6 +162,9 @@ def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, q0:
     summary_file : str or None
         Name of the summary written to ``out_dir``; None: none (a caller that
         runs more stages writes one summary of them all).
+    **solve
+        Passed to :func:`shellform.mra.solve_mra_case` (``q0``, ``v0``,
+        ``callback``, ``grid``).
 
     Returns
     -------
@@ -174,7 +176,7 @@ def run_mra_case(params: dict, out_dir, progress: Progress | None = None, *, q0:
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    case = solve_mra_case(params, progress, q0=q0, v0=v0, callback=callback, grid=grid)
+    case = solve_mra_case(params, progress, **solve)
     files = []
     if case.meshes:
         files += write_net_meshes(out, case.result, case.inverted)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..io.files import output_folder, output_lock
@@ -103,9 +103,8 @@ def _mark(case: Case, folder: Path) -> None:
 # -- the sweep ----------------------------------------------------------------------
 
 
-def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = None, workers: int = 2,
-              progress: Progress | None = None, plot_y: str | None = None, rerun: bool = False,
-              options: SweepOptions | None = None) -> list[dict]:
+def run_sweep(scene_path, params: list[str], out_dir, progress: Progress | None = None,
+              options: SweepOptions | None = None, **fields) -> list[dict]:
     """Run a parameter study; returns one row per case, in case order.
 
     Parameters
@@ -117,10 +116,13 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
     out_dir : path-like
         The sweep's folder: ``sweep.csv``, ``sweep.json``, ``sweep.png`` and one
         ``case_NNN`` folder per case. It is locked while the sweep runs.
-    scheduler, workers, plot_y, rerun
-        See :class:`SweepOptions` (``options``, when given, is used instead).
     progress : callable, optional
         Called with one line per case as it finishes.
+    options : SweepOptions, optional
+        Where and how the cases run (defaults: :class:`SweepOptions`).
+    **fields
+        Fields of :class:`SweepOptions` by name (``workers=1``, ``scheduler=...``,
+        ``rerun=True``, ``plot_y=...``), over those of ``options``.
 
     Raises
     ------
@@ -128,7 +130,7 @@ def run_sweep(scene_path, params: list[str], out_dir, scheduler: str | None = No
         A bad key or value (before any case runs), or a ``plot_y`` that no
         case summary has (after the table is written).
     """
-    opts = options or SweepOptions(workers=workers, scheduler=scheduler, rerun=rerun, plot_y=plot_y)
+    opts = replace(options or SweepOptions(), **fields)
     from ..scene import load_scene
 
     progress = progress or (lambda msg: None)
