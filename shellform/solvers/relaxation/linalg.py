@@ -60,54 +60,37 @@ class SPDSolve:
     by conjugate gradients preconditioned with the old factor (a few cheap
     iterations while the tangent changes little), and refactorised only when
     that does not converge within ``cg_max`` iterations. By default
-    ``cg_max`` is half as many iterations as one refactorisation costs in
-    preconditioned iterations (between 5 and 60, :func:`iteration_budget`),
-    so a failed attempt never costs more than half a factorisation. That
-    cost follows the number of unknowns (ratios measured on net tangents),
-    not the times of the run: with the run's times the budget, and with it
-    the path of the relaxation, changed from run to run (19 to 23 steps on
-    one 316 x 316 net, 37 to 50 on one 1000 x 1000 net).
-    An attempt saves at least half a factorisation when it converges and
-    loses about half of one when it does not, so it pays only while attempts
-    converge more often than not. A running estimate of that rate (each
-    attempt weighs 30 %) decides: below one half the old factor is not tried,
-    except on every fourth solve, which keeps the estimate current. On a
-    316 x 316 net 120 of 164 attempts failed, each after five iterations
-    costing 0.35 s beside a 0.8 s factorisation.
+    ``cg_max`` is half as many iterations as one refactorisation costs
+    (:func:`iteration_budget`, a function of the number of unknowns rather
+    than of the run's own timings, so that the relaxation takes the same path
+    on every run), so a failed attempt never costs more than half a
+    factorisation. An attempt pays only while attempts converge more often
+    than not: a running estimate of that rate (each attempt weighs 30 %)
+    decides, and below one half the old factor is tried only on every fourth
+    solve, which keeps the estimate current.
 
     The old factor is corrected where the matrix has changed since it was
-    made (``correct``, :class:`~.local_correction.LocalCorrection`):
-    ropes pulled taut or gone slack change their blocks by about their whole
-    size, each such rope is an outlying eigenvalue for the old factor alone,
-    and an exact solve on the nodes around them takes those out. When the
-    changed nodes are too many (a new stiffness stage changes every entry)
-    the matrix is factorised without an attempt.
+    made (``correct``, :class:`~.local_correction.LocalCorrection`): a rope
+    pulled taut or gone slack changes its block by about its whole size and is
+    an outlying eigenvalue for the old factor alone; an exact solve on the
+    nodes around such ropes takes those out. When too many nodes changed (a
+    new stiffness stage changes every entry) the matrix is factorised without
+    an attempt.
 
-    ``"cholesky"`` (what ``"auto"`` means) is CHOLMOD's supernodal Cholesky
-    (:class:`~shellform.solvers.linear.CholeskyFactor`) with its analysis
-    kept for the fixed pattern: ``K + sigma M`` is positive definite here, so
-    no inertia and no pivoting are needed. On the taut tangent of a
-    316 x 316 net one refactorisation took 0.63 s against QDLDL's 9.6 s
-    (``benchmarks/results/bench_factorization.md``).
-
-    ``"ldl"`` keeps one QDLDL object and refactorises numerically on the same
-    pattern (the ordering and symbolic analysis are done once; QDLDL orders
-    by approximate minimum degree). ``"nd"`` factorises with SuperLU in a
-    nested-dissection order of the nodes computed once from their
-    coordinates (:func:`~.ordering.nested_dissection`); on the surface-like graph of a
-    net its fill grows like ``N log N`` instead of AMD's faster growth.
-    Measured on one tangent of a 317 x 317 net (297,675 DOFs): QDLDL 10.9 s,
-    SuperLU in nested-dissection order 5.2 s; at 101 x 101 (29,403 DOFs)
-    0.14 s and 0.2 s. Explicit zeros (slack ropes) are removed first: with
-    them SuperLU took 149 s instead of 0.52 s on one matrix. Inside a
-    relaxation SuperLU's time still varies widely from matrix to matrix
-    (0.5 s to about 50 s per factorisation at 297,675 DOFs, 0.03 s to 0.5 s
-    at 29,403). ``"amg"`` uses smoothed-aggregation multigrid with the
-    three nodal translations as near-null space as the preconditioner; it
-    suits soft nets only: on a taut net of nearly inextensible ropes the
-    tangent is so anisotropic (axial over transverse stiffness = 1 / strain)
-    that preconditioned CG needed about 2000 iterations at 29,403 DOFs.
-    Other methods go to :func:`shellform.solvers.linear.factorize`.
+    Methods: ``"cholesky"`` (what ``"auto"`` means) is CHOLMOD's supernodal
+    Cholesky (:class:`~shellform.solvers.linear.CholeskyFactor`) with its
+    analysis kept for the fixed pattern (``A`` is positive definite, so no
+    inertia and no pivoting are needed); ``"ldl"`` keeps one QDLDL object and
+    refactorises numerically on the same pattern; ``"nd"`` factorises with
+    SuperLU in a nested-dissection order of the nodes computed once from
+    their coordinates (:func:`~.ordering.nested_dissection`; on the
+    surface-like graph of a net its fill grows like ``N log N``), with
+    explicit zeros (slack ropes) removed first; ``"amg"`` is
+    smoothed-aggregation multigrid with the three nodal translations as
+    near-null space, for soft nets only (a taut net of nearly inextensible
+    ropes is too anisotropic for it). Other methods go to
+    :func:`shellform.solvers.linear.factorize`. Their costs across net sizes
+    are in ``docs/accuracy.md`` (``benchmarks/bench_factorization.py``).
     """
 
     def __init__(self, method: str, n: int, reuse: bool = True, cg_max: int | None = None,
