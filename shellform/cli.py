@@ -115,6 +115,16 @@ def _cmd_schema(args) -> int:
     return 0
 
 
+def _runner_arguments(parser, runs: str) -> None:
+    """Where the runs of a sweep or a study go (shellform.studies.runner), and whether finished ones run again."""
+    parser.add_argument("--workers", type=int, default=2, help=f"local processes (default: 2; 1 runs the {runs} in "
+                        "this process)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS", help=f"run the {runs} on this Dask "
+                        "scheduler instead (needs the extra shellform[sweep])")
+    parser.add_argument("--rerun", action="store_true", help=f"run every one of the {runs} again, also those "
+                        "finished before")
+
+
 def main(argv=None) -> int:
     from . import __version__
 
@@ -142,11 +152,7 @@ def main(argv=None) -> int:
                     help="scene key path and its values, e.g. members[0].EA=1e3,1e4 (repeatable: all combinations)")
     sw.add_argument("--out", default="sweep", help="output directory (default: ./sweep); a sweep run again into "
                     "it keeps the cases that finished")
-    sw.add_argument("--workers", type=int, default=2, help="local processes (default: 2; 1 runs the cases in "
-                    "this process)")
-    sw.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the cases on this Dask scheduler "
-                    "instead (needs the extra shellform[sweep])")
-    sw.add_argument("--rerun", action="store_true", help="run every case again, also those finished before")
+    _runner_arguments(sw, "cases")
     sw.add_argument("--plot", default=None, help="summary entry to plot against the first parameter, e.g. "
                     "buckling.critical_load_factor")
     sw.add_argument("--quiet", action="store_true", help="no progress output")
@@ -158,11 +164,7 @@ def main(argv=None) -> int:
     imp.add_argument("scene", help="scene: a TOML file or the name of a built-in scene, with a [study] table")
     imp.add_argument("--out", default="study", help="output directory (default: ./study); a study run again into "
                      "it keeps the samples that finished")
-    imp.add_argument("--workers", type=int, default=2, help="local processes (default: 2; 1 runs the samples in "
-                     "this process)")
-    imp.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run the samples on this Dask scheduler "
-                     "instead (needs the extra shellform[sweep])")
-    imp.add_argument("--rerun", action="store_true", help="run every sample again, also those finished before")
+    _runner_arguments(imp, "samples")
     imp.add_argument("--quiet", action="store_true", help="no progress output")
     imp.set_defaults(func=_cmd_study)
     serve = sub.add_parser("serve", help="serve shellform's analyses to Grasshopper's Hops component")

@@ -46,3 +46,22 @@ def nodes_on_polyline(nodes: np.ndarray, polyline, tolerance: float) -> np.ndarr
         t = np.clip((nodes - a) @ d / max(float(d @ d), 1e-300), 0.0, 1.0)
         best = np.minimum(best, np.linalg.norm(nodes - (a + t[:, None] * d), axis=1))
     return np.flatnonzero(best <= tolerance)
+
+
+def coincident_groups(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points joined by ``pairs`` (and pairs of pairs) as groups numbered in order of first appearance.
+
+    Returns the index of each group's first point (ascending) and the group
+    of every one of the ``n`` points.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    _, first = np.unique(label, return_index=True)
+    order = np.argsort(first)
+    new = np.empty(len(order), dtype=np.int64)
+    new[order] = np.arange(len(order))
+    return np.sort(first), new[label]

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError
+from ..geometry.selection import coincident_groups
 from .mesh_import import MAX_COORDINATE, MAX_MESH_BYTES, MAX_POINTS, ImportedMesh, unique_edges
 
 #: metres per model unit
@@ -110,28 +111,20 @@ def merge_points(points: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray
     The unique points keep the order of first appearance, at the position of
     their first point.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     points = np.asarray(points, dtype=float).reshape(-1, 3)
-    n = len(points)
-    if n == 0:
+    if len(points) == 0:
         return points, np.zeros(0, dtype=np.int64)
-    pairs = cKDTree(points).query_pairs(tol, output_type="ndarray") if tol > 0 else np.zeros((0, 2), int)
-    if len(pairs) == 0:
-        _, first, inverse = np.unique(points, axis=0, return_index=True, return_inverse=True)
-        label = inverse.ravel()
-    else:
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        _, label = connected_components(graph, directed=False)
-    # renumber the groups in order of first appearance
-    _, first = np.unique(label, return_index=True)
-    order = np.argsort(first)
-    new = np.empty(len(order), dtype=np.int64)
-    new[order] = np.arange(len(order))
-    index = new[label]
-    return points[np.sort(first)], index
+    if tol > 0:
+        pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")
+    else:  # exactly equal points
+        _, inverse = np.unique(points, axis=0, return_inverse=True)
+        order = np.argsort(inverse.ravel(), kind="stable")
+        same = inverse.ravel()[order[1:]] == inverse.ravel()[order[:-1]]
+        pairs = np.stack([order[:-1][same], order[1:][same]], axis=1)
+    first, index = coincident_groups(len(points), pairs)
+    return points[first], index
 
 
 def _layer_names(model) -> dict[int, str]:

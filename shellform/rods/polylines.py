@@ -5,10 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-
 from ..errors import ModelError
+from ..geometry.selection import coincident_groups
 
 
 def stack_polylines(polylines: Sequence[np.ndarray], merge: bool = False, tol: float = 1e-9):
@@ -49,16 +47,8 @@ def stack_polylines(polylines: Sequence[np.ndarray], merge: bool = False, tol: f
     offsets = np.concatenate([[0], np.cumsum([len(p) for p in pts])])
     if not merge:
         return allp, [np.arange(offsets[k], offsets[k + 1]) for k in range(len(pts))], pairs
-    n = len(allp)
-    adj = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(adj, directed=False)
-    # renumber in order of first appearance
-    _, first = np.unique(label, return_index=True)
-    order = np.argsort(first)
-    new = np.empty(len(order), dtype=np.int64)
-    new[order] = np.arange(len(order))
-    index = new[label]
-    nodes = allp[np.sort(first)]
+    first, index = coincident_groups(len(allp), pairs)
+    nodes = allp[first]
     return nodes, [index[offsets[k] : offsets[k + 1]] for k in range(len(pts))], np.zeros((0, 2), dtype=np.int64)
 
 
