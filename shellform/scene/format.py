@@ -47,8 +47,8 @@ GEOMETRY = Table(
     keys={
         "type": Key("str", "Geometry source.", choices=GEOMETRIES),
         "file": Key("str", "Mesh file read by meshio (.vtu, .msh, .obj, ...) or a Rhino file (.3dm), relative to "
-                    "the scene file (type 'surface': a STEP, IGES or BREP file of surfaces, meshed by gmsh). Line cells become members, and so do the edges of triangle and quad cells (each "
-                    "once). Of a Rhino file: curves are chains of lines, meshes triangles and quads, points nodes of "
+                    "the scene file (type 'surface': a STEP, IGES or BREP file of surfaces, meshed by gmsh). "
+                    "Line cells become members, and so do the edges of triangle and quad cells (each once). Of a Rhino file: curves are chains of lines, meshes triangles and quads, points nodes of "
                     "the named set of their layer; every layer is a named node set (docs/rhino.md).",
                     default=None, only=("file", "surface"), required_for=("file", "surface"), max_length=1000),
         "layers": Key("str_list", "Rhino file: read only the objects on these layers (full path 'parent::child' or "
