@@ -87,6 +87,33 @@ def eigenvalue_near_zero(K, F) -> float | None:
         return None
 
 
+def critical_mode(tr, K) -> tuple[float, np.ndarray]:
+    """The eigenpair of ``K`` closest to zero at a located event (unit vector, largest entry positive).
+
+    The reported point lies next to the critical point, not on it, so ``K`` is
+    regular and its own factor inverts it: Lanczos about zero converges in a few
+    iterations, the critical eigenvalue being far nearer zero than the next. A
+    shift off zero relative to the largest diagonal entry (``critical_modes``)
+    lies among the soft eigenvalues of a rod network, twelve orders of
+    magnitude below that entry, and took thousands of iterations at each of the
+    hemisphere's folds. Dense below ``DENSE_LIMIT`` unknowns, and
+    ``critical_modes`` where the factorisation fails.
+    """
+    n = K.shape[0]
+    if n > DENSE_LIMIT:
+        F = tr.pb.factor(K)
+        if F is not None:
+            try:
+                op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b)), dtype=float)
+                w, V = spla.eigsh(K, k=1, sigma=0.0, which="LM", OPinv=op, v0=start_vector(n))
+                v = V[:, 0]
+                return float(w[0]), v * np.sign(v[np.argmax(np.abs(v))])
+            except (SingularMatrixError, RuntimeError, ValueError, spla.ArpackNoConvergence):
+                pass
+    w, V = critical_modes(K, 1)
+    return float(w[0]), V[:, 0]
+
+
 class _Trial:
     """One point of the bracket: state, side of the event, test function and tangent."""
 
@@ -257,8 +284,7 @@ def locate(tr, kind, A, B, ds_step, n_A):
             t_du, t_dp = -t_du, -t_dp
     t1 = time.perf_counter()
     try:
-        w, V = critical_modes(K, 1)
-        eig, vec = float(w[0]), V[:, 0]
+        eig, vec = critical_mode(tr, K)
     except InertiaError:
         eig, vec = float("nan"), np.zeros(tr.free.size)
     tr.timer.add("stability", t1)
