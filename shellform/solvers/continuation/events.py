@@ -217,10 +217,8 @@ def locate(tr, kind, A, B, ds_step, n_A):
     point's ``(u, p, q)``.
     """
     t0 = time.perf_counter()
-    o = tr.o
     u0, p0, tA_du, tA_dp = A
     sign_A = math.copysign(1.0, tA_dp)
-    floor = o.locate_tol * ds_step
     located, last = False, None
     hi = _Trial(ds_step, (B.u, B.p, B.q, B.r), False, None, (B.t_du, B.t_dp))
     lo = _Trial(0.0, (u0, p0, tr.pb.state(u0, p0), None), True, tA_dp if kind == "limit" else None)
@@ -229,33 +227,7 @@ def locate(tr, kind, A, B, ds_step, n_A):
         if kind != "limit":
             lo = _probe(tr, kind, lo.pt, u0, p0, sign_A, n_A, 0.0)
             lo.before = True
-        f_lo, f_hi = lo.f, hi.f
-        side, trials, bisect = 0, 0, False
-        history = [(lo.sigma, lo.f), (hi.sigma, hi.f)]
-        while True:
-            need = _needed_width(kind, lo, hi, o.critical_rtol)
-            if hi.sigma - lo.sigma <= max(floor, need):
-                break
-            if trials >= MAX_TRIALS:
-                raise StepFailure(f"not located in {MAX_TRIALS} trial points")
-            sigma = _next_sigma(lo, hi, f_lo, f_hi, history, bisect, 0.5 * max(floor, need))
-            pt = solve_between(tr, A, lo.pt, hi.pt, lo.sigma, hi.sigma, sigma)
-            trial = _probe(tr, kind, pt, u0, p0, sign_A, n_A, sigma)
-            trials += 1
-            # safeguard: a trial that did not halve the test function is followed by a bisection
-            f_prev = history[-1][1]
-            bisect = not bisect and (trial.f is None or f_prev is None or abs(trial.f) > 0.5 * abs(f_prev))
-            history.append((sigma, trial.f))
-            if trial.before:
-                lo, f_lo = trial, trial.f
-                if side == -1 and f_hi is not None:
-                    f_hi *= 0.5  # Illinois: the end kept twice counts half, so that the bracket closes
-                side = -1
-            else:
-                hi, f_hi = trial, trial.f
-                if side == 1 and f_lo is not None:
-                    f_lo *= 0.5
-                side = 1
+        lo, hi = _narrow(tr, kind, A, lo, hi, tr.o.locate_tol * ds_step, n_A)
         located = True
     except (StepFailure, SingularMatrixError) as exc:
         last = str(exc)
@@ -265,11 +237,55 @@ def locate(tr, kind, A, B, ds_step, n_A):
     if located and kind == "limit" and lo.f is not None and hi.f is not None and lo.sigma > 0.0 \
             and abs(lo.f) < abs(hi.f):
         at = lo
-    sigma = at.sigma
+    ev = _event(tr, kind, at, (lo, hi), A, n_A, "" if located else f"location stopped early: {last}")
+    tr.timer.add("event_location", t0)
+    return ev, at.pt[:3]
+
+
+def _narrow(tr, kind, A, lo, hi, floor, n_A):
+    """Close the bracket ``(lo, hi)`` on the event: safeguarded secant (Illinois) steps on the test function.
+
+    Returns the final bracket; raises StepFailure when it does not close in
+    ``MAX_TRIALS`` trial points.
+    """
+    u0, p0, _, tA_dp = A
+    sign_A = math.copysign(1.0, tA_dp)
+    f_lo, f_hi = lo.f, hi.f
+    side, trials, bisect = 0, 0, False
+    history = [(lo.sigma, lo.f), (hi.sigma, hi.f)]
+    while True:
+        need = _needed_width(kind, lo, hi, tr.o.critical_rtol)
+        if hi.sigma - lo.sigma <= max(floor, need):
+            return lo, hi
+        if trials >= MAX_TRIALS:
+            raise StepFailure(f"not located in {MAX_TRIALS} trial points")
+        sigma = _next_sigma(lo, hi, f_lo, f_hi, history, bisect, 0.5 * max(floor, need))
+        pt = solve_between(tr, A, lo.pt, hi.pt, lo.sigma, hi.sigma, sigma)
+        trial = _probe(tr, kind, pt, u0, p0, sign_A, n_A, sigma)
+        trials += 1
+        # safeguard: a trial that did not halve the test function is followed by a bisection
+        f_prev = history[-1][1]
+        bisect = not bisect and (trial.f is None or f_prev is None or abs(trial.f) > 0.5 * abs(f_prev))
+        history.append((sigma, trial.f))
+        if trial.before:
+            lo, f_lo = trial, trial.f
+            if side == -1 and f_hi is not None:
+                f_hi *= 0.5  # Illinois: the end kept twice counts half, so that the bracket closes
+            side = -1
+        else:
+            hi, f_hi = trial, trial.f
+            if side == 1 and f_lo is not None:
+                f_lo *= 0.5
+            side = 1
+
+
+def _event(tr, kind, at, bracket, A, n_A, message: str) -> PathEvent:
+    """The event reported at the trial point ``at`` of the final ``bracket``: its state, mode and tangent."""
+    lo, hi = bracket
+    _, _, tA_du, tA_dp = A
     u, p, q, r = at.pt
     if r is None:
         r = tr.system.residual(q, tr.pb.lam_mu(p)[0])
-    p_lo, p_hi = lo.pt[1], hi.pt[1]
     K = at.K
     if K is None or at.tangent is None:
         K, g = tr.pb.jacobian(u, p, q)
@@ -292,13 +308,9 @@ def locate(tr, kind, A, B, ds_step, n_A):
     mode[tr.free] = vec
     reactions = np.zeros(tr.system.n_dof)
     reactions[tr.system.constrained] = r[tr.system.constrained]
-    bracket = abs(p_hi - p_lo)
-    ev = PathEvent(
-        **tr.location(q, r, p, tr.s + sigma), kind=kind, step=tr.step + 1,
-        n_negative_before=int(n_A), n_negative_after=-1, located=located, bracket=bracket,
+    return PathEvent(
+        **tr.location(q, r, p, tr.s + at.sigma), kind=kind, step=tr.step + 1,
+        n_negative_before=int(n_A), n_negative_after=-1, located=not message, bracket=abs(hi.pt[1] - lo.pt[1]),
         arc_bracket=hi.sigma - lo.sigma, eigenvalue=eig, mode=mode, q=q.copy(), reactions=reactions,
-        tangent=np.concatenate([t_du, [t_dp]]),
-        message="" if located else f"location stopped early: {last}",
+        tangent=np.concatenate([t_du, [t_dp]]), message=message,
     )
-    tr.timer.add("event_location", t0)
-    return ev, (u, p, q)
