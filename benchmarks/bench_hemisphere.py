@@ -102,16 +102,16 @@ def segment(n, dl, x_end, speed=1.0e-3, h=1.0e-3, newton_only=False):
 
 def chord_rate_curve(variant: str, n: int, dl: float) -> dict:
     """The whole curve with implicit Euler's kept factor off (``variant == "off"``) or at a chord rate."""
-    import shellform.solvers.implicit_euler as ie
+    import shellform.solvers.implicit_step as ie
 
     if variant == "off":
-        step = ie._Stepper.step
+        step = ie.Stepper.step
 
         def without_kept_factor(self, *args):
             self.kept = None
             return step(self, *args)
 
-        ie._Stepper.step = without_kept_factor
+        ie.Stepper.step = without_kept_factor
     else:
         ie.CHORD_RATE = float(variant)
     out = whole_curve(n, dl)
