@@ -155,19 +155,19 @@ def test_cholesky_names_a_row_without_a_diagonal_entry():
 def test_a_freed_ldl_factor_lends_its_analysis_to_the_next_of_the_same_pattern():
     """The second factorisation of a pattern takes the first's ordering and symbolic analysis once
     the first is freed, and gives the same factor as a fresh analysis."""
-    from shellform.solvers import linear
+    from shellform.solvers import ldl
 
     rng = np.random.default_rng(3)
     A = laplacian_3d(40)
     B = sp.csr_matrix((A.data * rng.uniform(0.5, 1.5, A.nnz), A.indices, A.indptr), shape=A.shape)
     B = sp.csr_matrix(0.5 * (B + B.T))
-    linear._POOL.clear()
+    ldl._POOL.clear()
     fresh = LDLFactor(B)
     d_fresh, x_fresh = fresh.d.copy(), fresh.solve(np.ones(B.shape[0]))
     del fresh
-    assert len(linear._POOL._items) == 1
+    assert len(ldl._POOL._items) == 1
     F = LDLFactor(A)  # same pattern: takes the pooled analysis
-    assert len(linear._POOL._items) == 0
+    assert len(ldl._POOL._items) == 0
     del F
     G = LDLFactor(B)
     assert np.array_equal(G.d, d_fresh)
@@ -176,7 +176,7 @@ def test_a_freed_ldl_factor_lends_its_analysis_to_the_next_of_the_same_pattern()
     del G
     C = laplacian_3d(41)
     H = LDLFactor(C)
-    assert len(linear._POOL._items) == 1 and H.inertia == (0, 0, C.shape[0])
+    assert len(ldl._POOL._items) == 1 and H.inertia == (0, 0, C.shape[0])
 
 
 def test_diagonal_shift_keeps_the_pattern_with_its_explicit_zeros():
