@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from test_continuation_models import H, L, P_CR, truss_load, von_mises
 
 from shellform.io.table import plot_path, read_path_csv, write_path_csv
@@ -89,3 +90,37 @@ def test_the_written_buckling_mode_of_a_pinned_column_is_a_half_sine(tmp_path):
     assert np.abs(shape - np.sin(np.pi * x / L)).max() < 1e-3
     assert abs(np.linalg.norm(mode, axis=1).max() - 1.0) < 1e-12  # largest nodal displacement 1
     assert first["file"] in summary["files"]
+
+
+def test_the_eigenvalue_column_follows_the_tangent_through_its_critical_points(tmp_path):
+    """At the unloaded von Mises truss the tangent's eigenvalue nearest zero is the vertical
+    stiffness 2 EA sin^2(alpha) / L0; it is negative exactly where a negative eigenvalue is
+    counted, and the CSV carries it."""
+    system = von_mises("load")
+    res = trace_path(system, "load", initial_increment=P_CR / 10, max_steps=200, max_displacement=2.2 * H,
+                     eigenvalue_column=True)
+    eig = res.table["eigenvalue"]
+    L0 = np.hypot(L, H)
+    assert abs(eig[0] - 2.0 * 1.0e6 * (H / L0) ** 2 / L0) < 1e-9 * eig[0]
+    assert np.array_equal(eig < 0, res.table["n_negative"] > 0)
+    table = read_path_csv(write_path_csv(res, tmp_path / "p.csv"))
+    assert np.array_equal(table["eigenvalue"], eig)
+
+
+def test_the_eigenvalue_column_of_a_large_model_is_the_lanczos_value_nearest_zero():
+    """797 free DOFs (Lanczos on the point's own factor, past the dense limit): after Euler's
+    load the pinned column's double buckling eigenvalue is negative and nearest zero."""
+    import scipy.sparse.linalg as spla
+
+    from shellform.solvers.newton import solve_static
+    from shellform.validation.cases_rods import euler_column
+
+    s, system = euler_column("pinned-pinned", n=200)
+    res = trace_path(system, "load", initial_increment=2.0, parameter_bounds=(0.0, 1.3 * np.pi**2), max_steps=60,
+                     eigenvalue_column=True)
+    assert system.n_free > 400 and np.all(np.isfinite(res.table["eigenvalue"]))
+    k = int(np.argmax(res.table["n_negative"] > 0))
+    static = solve_static(system, lam=float(res.table["lam"][k]), q0=res.states[k])
+    w = spla.eigsh(system.tangent_free(static.q), k=3, sigma=0.0, which="LM", return_eigenvectors=False)
+    assert res.table["eigenvalue"][k] == pytest.approx(w[np.argmin(np.abs(w))], rel=1e-6)
+    assert res.table["eigenvalue"][k] < 0

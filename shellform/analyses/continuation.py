@@ -172,7 +172,7 @@ def path_options(scene: dict, structure, system) -> tuple[dict, str | None, Call
         max_steps=c["max_steps"], parameter_bounds=(c["parameter_min"], c["parameter_max"]),
         constraint=c["constraint"], stability=c["stability"], on_bifurcation=c["on_bifurcation"],
         branch_side=c["branch_side"], rtol=a["rtol"], fixed_lam=a["load_factor"], fixed_mu=a["prescribed"],
-        q0=scenes.scene_start_state(scene, structure),
+        q0=scenes.scene_start_state(scene, structure), eigenvalue_column=c["eigenvalue_column"],
     )
     if c["initial_increment"] is not None:
         options["initial_increment"] = c["initial_increment"]

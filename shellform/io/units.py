@@ -30,7 +30,8 @@ def path_units(control: str, monitors=()) -> dict[str, str]:
     Under load control the parameter is the load factor ``lam`` (a multiple
     of the scene's loads, no unit); under displacement control it is the
     magnitude ``mu`` of the prescribed displacements [m] and the generalised
-    load is the reaction conjugate to it [N]. Monitors are displacements.
+    load is the reaction conjugate to it [N]. Monitors are displacements; the
+    tangent's eigenvalue (``eigenvalue``) has none.
     """
     load = "-" if control == "load" else "N"
     units = {
@@ -38,7 +39,8 @@ def path_units(control: str, monitors=()) -> dict[str, str]:
         "parameter": "-" if control == "load" else "m", "load": load, "displacement": "m",
         "n_negative": "-", "iterations": "-", "ds": "-",
     }
-    units.update({m: "m" for m in monitors})
+    # the tangent's eigenvalue mixes N/m (translations) and N m (twist angles): no one unit
+    units.update({m: "m" for m in monitors if m != "eigenvalue"})
     return units
 
 

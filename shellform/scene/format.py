@@ -392,6 +392,9 @@ SCENE = Table(
                                           choices=("spherical", "cylindrical")),
                         "stability": Key("bool", "Count negative eigenvalues of the tangent at every point.",
                                          default=True),
+                        "eigenvalue_column": Key("bool", "Also write the eigenvalue of the tangent nearest zero at "
+                                                 "every point (column 'eigenvalue' of path.csv; a Lanczos run "
+                                                 "per point).", default=False),
                         "on_bifurcation": Key("str", "At a bifurcation: stay on the primary branch, follow the "
                                               "secondary one, or stop.", default="continue",
                                               choices=("continue", "switch", "stop")),

@@ -292,6 +292,33 @@ def critical_modes(A, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
     return w, V
 
 
+#: Lanczos iterations for the eigenvalue nearest zero at a path point (beyond: NaN, not a guess)
+EIGENVALUE_ITERATIONS = 200
+
+
+def nearest_eigenvalue(K, factor=None) -> float:
+    """The eigenvalue of a symmetric matrix nearest zero, by Lanczos on its inverse (``factor`` solves with ``K``).
+
+    Dense below ``DENSE_LIMIT`` unknowns. NaN when there is no factor of a
+    large matrix (it is singular) or the iteration does not converge: a
+    value that was not computed is not reported as one.
+    """
+    n = K.shape[0]
+    if n <= DENSE_LIMIT:
+        with single_threaded():
+            w = sla.eigvalsh(sp.csr_matrix(K).toarray())
+        return float(w[np.argmin(np.abs(w))])
+    if factor is None:
+        return float("nan")
+    op = spla.LinearOperator((n, n), matvec=lambda b: factor.solve(np.ravel(b)), dtype=float)
+    try:
+        w = spla.eigsh(K, k=1, sigma=0.0, which="LM", OPinv=op, v0=start_vector(n), maxiter=EIGENVALUE_ITERATIONS,
+                       tol=1e-8, return_eigenvectors=False)
+    except (spla.ArpackNoConvergence, SingularMatrixError, RuntimeError, ValueError):
+        return float("nan")
+    return float(w[0])
+
+
 # ---------------------------------------------------------------------------
 # rod networks: pivots spanning twelve orders of magnitude
 # ---------------------------------------------------------------------------

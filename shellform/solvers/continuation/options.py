@@ -98,6 +98,12 @@ class ContinuationOptions:
     monitors : dict
         Extra table columns: ``name -> DOF index`` (displacement of that DOF) or
         ``name -> callable(q, lam, mu) -> float``.
+    eigenvalue_column : bool
+        Record at every point the eigenvalue of the free tangent nearest zero
+        (table column ``eigenvalue``): a critical point is where it crosses
+        zero, and how near the path comes to one shows between events. It
+        costs a Lanczos run on the point's own factor per point (NaN where
+        that does not converge in ``EIGENVALUE_ITERATIONS``).
     displacement_dof : int
         DOF whose displacement (in the direction of its load) is the
         ``displacement`` column under load control; default the most loaded DOF.
@@ -138,6 +144,7 @@ class ContinuationOptions:
     fixed_lam: float = 1.0
     fixed_mu: float = 0.0
     monitors: dict = field(default=None)
+    eigenvalue_column: bool = False
     displacement_dof: int | None = None
     store_states: bool = True
     linear_solver: str = "ldl"

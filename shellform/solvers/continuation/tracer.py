@@ -20,7 +20,7 @@ import numpy as np
 from ...errors import ModelError
 from ..linear import CholeskyFactor, LDLFactor, SingularMatrixError
 from ..mechanism import describe_soft_modes
-from ..stability import InertiaError, inertia
+from ..stability import DENSE_LIMIT, InertiaError, inertia, nearest_eigenvalue
 from ..step_bounds import FOLD_OVERSHOOT, fold_distance
 from .branches import switch_at
 from .corrector import StepPoint, correct, land
@@ -73,7 +73,7 @@ class Tracer:
             s = np.sign(self.pb.f_ref[self.disp_dof])
             self.disp_sign = float(s) if s != 0 else 1.0
         self.table = {c: [] for c in TABLE_COLUMNS}
-        for name in self.monitors:
+        for name in self.extra_columns():
             if name in self.table:
                 raise ModelError(f"monitor name {name!r} clashes with a path table column")
             self.table[name] = []
@@ -108,9 +108,13 @@ class Tracer:
         i = self.disp_dof
         return self.disp_sign * float(q[i] - self.system.q_ref[i])
 
+    def extra_columns(self) -> list[str]:
+        """The table's columns beyond ``TABLE_COLUMNS``: the monitors, then the eigenvalue when asked for."""
+        return list(self.monitors) + (["eigenvalue"] if self.o.eigenvalue_column else [])
+
     def monitor_values(self, q, p):
         lam, mu = self.pb.lam_mu(p)
-        out = {}
+        out = {"eigenvalue": self.nearest_eigenvalue(q, p)} if self.o.eigenvalue_column else {}
         for name, spec in self.monitors.items():
             if callable(spec):
                 out[name] = float(spec(q, lam, mu))
@@ -118,6 +122,28 @@ class Tracer:
                 i = int(spec)
                 out[name] = float(q[i] - self.system.q_ref[i])
         return out
+
+    def nearest_eigenvalue(self, q, p) -> float:
+        """The eigenvalue of the free tangent nearest zero at the point ``q``, with the point's own factor."""
+        t0 = time.perf_counter()
+        try:
+            lin = self.last_linearisation
+            u = q[self.free]
+            if lin is not None and np.array_equal(lin[0], u) and lin[3] is not None:
+                K, F = lin[1], lin[3]
+            else:
+                K, _ = self.pb.jacobian(u, p, q)
+                F = self.pb.factor(K)
+            value = nearest_eigenvalue(K, F)
+            if np.isnan(value) and K.shape[0] > DENSE_LIMIT:
+                # the point's factor may have lent its storage to a later one (event location): a fresh one
+                try:
+                    value = nearest_eigenvalue(K, LDLFactor(K))
+                except SingularMatrixError:
+                    pass
+            return value
+        finally:
+            self.timer.add("stability", t0)
 
     # -- linearisation at a converged point ------------------------------------------------
     def analyse_point(self, u, p, ref_du, ref_dp, q=None):
@@ -412,5 +438,5 @@ class Tracer:
             success=success, message=message, status=status, control=self.control, steps=self.step,
             rejected_steps=self.rejected, newton_iterations=self.newton_total, table=table,
             states=self.states, state_steps=self.state_steps, events=self.events, timings=dict(self.timer.t),
-            monitors=tuple(self.monitors), parameter_scale=math.sqrt(self.c2),
+            monitors=tuple(self.extra_columns()), parameter_scale=math.sqrt(self.c2),
         )
