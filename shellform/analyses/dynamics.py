@@ -73,8 +73,12 @@ class _History:
                         **{f"history_{c}": np.asarray(self.table[c]) for c in self.columns})
         self.last_save = time.perf_counter()
 
-    def record(self, t, q, v, count=True):
-        """One row of the table (and a frame every ``output_every`` steps); a checkpoint when it is due."""
+    def record(self, t, q, v, count=True) -> bool:
+        """One row of the table (and a frame every ``output_every`` steps); a checkpoint when it is due.
+
+        Returns whether a checkpoint was written (the time stepping restarts from that state as a resumed
+        run would).
+        """
         self.step += count
         x = q[: 3 * self.structure.n_nodes].reshape(-1, 3)
         row = [self.step, t, 0.5 * float(v @ (self.mass * v)),
@@ -87,6 +91,8 @@ class _History:
             self.frames.append((t, q.copy(), self.lam(t)))
         if time.perf_counter() - self.last_save >= self.interval:
             self.save(t, q, v)
+            return True
+        return False
 
 
 def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = False) -> dict:

@@ -235,7 +235,10 @@ def implicit_euler(
         Masses, damping, loads and supports in time, tolerances, solver
         (defaults: :class:`ImplicitEulerOptions`).
     callback : callable, optional
-        ``callback(t, q, v)`` after every accepted step (progress).
+        ``callback(t, q, v)`` after every accepted step (progress, checkpoints).
+        Returning True marks the state as a restart point (a checkpoint was
+        written there): the next step then starts without the kept factor,
+        as a run resumed from that state does, so that both go on alike.
     **overrides
         Any field of :class:`ImplicitEulerOptions` by name (``mass``,
         ``damping``, ``mu``, ``rtol``, ``stop``, ...), applied on top of ``options``.
@@ -273,8 +276,8 @@ def implicit_euler(
         t += dt
         system.accept(q)
         static = run.record(t, q, v, r[system.free], its)
-        if callback is not None:
-            callback(t, q, v)
+        if callback is not None and callback(t, q, v):
+            stepper.kept = None
         if o.stop is not None and o.stop(t, q, v, static):
             return run.end(q, v, t, True, f"stopped at t = {t:.6g} s after {run.res.steps} steps")
         dt = min(h, 2.0 * dt)
