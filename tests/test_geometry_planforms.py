@@ -124,3 +124,21 @@ def test_node_selections():
     assert nodes_in_box(x, [[0.5, -1, -1], [2.5, 0.5, 1]]).tolist() == [1, 2]
     assert nodes_on_polyline(x, [[0, 0, 0], [2, 0, 0]], 1e-9).tolist() == [0, 1, 2]
     assert nodes_on_polyline(x, [[0, 1, 0], [2, 1, 0]], 1e-9).tolist() == [3]
+
+
+SQUARE = [[0.0, 0.0, 0.0], [20.0, 0.0, 0.0], [20.0, 20.0, 0.0], [0.0, 20.0, 0.0]]
+HOLE = [[6.0, 6.0, 0.0], [14.0, 6.0, 0.0], [14.0, 14.0, 0.0], [6.0, 14.0, 0.0]]
+
+
+@pytest.mark.parametrize("boundary, holes, message", [
+    # the courtyard's boundary with a corner deleted: the hole now crosses it (gmsh meshed for ever)
+    ([SQUARE[0], SQUARE[2], SQUARE[3]], [HOLE], "hole 1: not inside"),
+    ([[0, 0, 0], [20, 20, 0], [20, 0, 0], [0, 20, 0]], [], "boundary: side 0 .* meets side 2"),  # a bow tie
+    (SQUARE, [HOLE, [[10, 10, 0], [18, 10, 0], [18, 18, 0], [10, 18, 0]]], "hole 2 and planform hole 1 overlap"),
+    (SQUARE, [[[8, 8, 0], [12, 8, 0], [12, 12, 0], [8, 12, 0]], HOLE], "hole 2 and planform hole 1 overlap"),
+    (SQUARE, [[[6, 6, 0], [14, 6, 0], [14, 14, 1.0], [6, 14, 0]]], "off the plane"),
+    ([[0, 0, 0], [10, 0, 0], [20, 0, 0]], [], "one line"),
+])
+def test_loops_gmsh_cannot_mesh_are_refused_before_meshing(boundary, holes, message):
+    with pytest.raises(ModelError, match=message):
+        polygon_planform(boundary, holes, edge_length=1.0)

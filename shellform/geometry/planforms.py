@@ -96,6 +96,82 @@ def _polygon_area(p: np.ndarray) -> float:
     return 0.5 * float(np.linalg.norm(n))
 
 
+def _in_plane(loops: list[np.ndarray]) -> list[np.ndarray]:
+    """The loops in 2-D coordinates of the outer loop's plane; refused when they leave that plane."""
+    outer = loops[0]
+    span = float(np.ptp(np.concatenate(loops), axis=0).max())
+    # the plane that fits the boundary's corners best (its normal: the direction of least spread)
+    _, sv, axes = np.linalg.svd(outer - outer.mean(axis=0))
+    if len(sv) < 2 or sv[1] <= 1e-9 * max(sv[0], 1e-300):
+        raise ModelError("planform boundary: its corners lie on one line; they enclose no area")
+    e1, e2, normal = axes[0], axes[1], np.cross(axes[0], axes[1])
+    for k, p in enumerate(loops):
+        off = np.abs((p - outer[0]) @ normal).max()
+        if off > 1e-9 * span:
+            what = "planform boundary" if k == 0 else f"planform hole {k}"
+            raise ModelError(f"{what}: a corner lies {off:.3g} m off the plane of the boundary; the loops must lie "
+                             "in one plane")
+    return [np.stack([(p - outer[0]) @ e1, (p - outer[0]) @ e2], axis=1) for p in loops]
+
+
+def _crossing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Which segments of the closed loop ``a`` meet which of ``b`` (touching counts), shape (len(a), len(b))."""
+    a1, a2 = a, np.roll(a, -1, axis=0)
+    b1, b2 = b, np.roll(b, -1, axis=0)
+
+    def orient(p, q, r):  # sign of the turn p -> q -> r, for all pairs
+        return np.sign((q[:, None, 0] - p[:, None, 0]) * (r[None, :, 1] - p[:, None, 1])
+                       - (q[:, None, 1] - p[:, None, 1]) * (r[None, :, 0] - p[:, None, 0]))
+
+    d1, d2 = orient(a1, a2, b1), orient(a1, a2, b2)
+    d3 = orient(b1, b2, a1).T
+    d4 = orient(b1, b2, a2).T
+    proper = (d1 * d2 < 0) & (d3 * d4 < 0)
+    touching = (d1 == 0) | (d2 == 0) | (d3 == 0) | (d4 == 0)
+    # a touching pair meets only where the collinear point lies on the other segment
+    lo_a, hi_a = np.minimum(a1, a2), np.maximum(a1, a2)
+    lo_b, hi_b = np.minimum(b1, b2), np.maximum(b1, b2)
+    boxes = np.all((lo_a[:, None] <= hi_b[None]) & (lo_b[None] <= hi_a[:, None]), axis=2)
+    return proper | (touching & boxes)
+
+
+def _inside(points: np.ndarray, loop: np.ndarray) -> np.ndarray:
+    """Even-odd rule: which points lie inside the closed loop."""
+    x, y = points[:, None, 0], points[:, None, 1]
+    x1, y1 = loop[None, :, 0], loop[None, :, 1]
+    x2, y2 = np.roll(loop, -1, axis=0)[None, :, 0], np.roll(loop, -1, axis=0)[None, :, 1]
+    up = (y1 > y) != (y2 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xs = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
+    return np.count_nonzero(up & (x < xs), axis=1) % 2 == 1
+
+
+def _check_loops(loops: list[np.ndarray]) -> None:
+    """Loops gmsh can mesh: each simple, every hole strictly inside the boundary, holes apart.
+
+    gmsh does not refuse a hole that crosses the boundary or a loop that
+    crosses itself: it meshes for minutes or forever.
+    """
+    flat = _in_plane(loops)
+    names = ["planform boundary"] + [f"planform hole {k}" for k in range(1, len(loops))]
+    for name, p in zip(names, flat):
+        meet = _crossing(p, p)
+        n = len(p)
+        i, j = np.nonzero(np.triu(meet, 2))
+        bad = [(a, b) for a, b in zip(i, j) if not (a == 0 and b == n - 1)]  # neighbours share a corner
+        if bad:
+            a, b = bad[0]
+            raise ModelError(f"{name}: side {a} (corners {a}-{(a + 1) % n}) meets side {b} (corners {b}-{(b + 1) % n}); "
+                             "a loop must not cross itself")
+    for k in range(1, len(flat)):
+        if np.any(_crossing(flat[k], flat[0])) or not np.all(_inside(flat[k], flat[0])):
+            raise ModelError(f"{names[k]}: not inside the planform boundary (it reaches or crosses it)")
+        for m in range(1, k):
+            if np.any(_crossing(flat[k], flat[m])) or np.any(_inside(flat[k][:1], flat[m])) \
+                    or np.any(_inside(flat[m][:1], flat[k])):
+                raise ModelError(f"{names[k]} and {names[m]} overlap; holes must lie apart")
+
+
 def polygon_planform(boundary, holes=(), *, edge_length: float, elements: str = "quads") -> QuadGrid | MeshNet:
     """A planform bounded by a closed polyline, with polygonal holes, meshed by gmsh.
 
@@ -118,6 +194,7 @@ def polygon_planform(boundary, holes=(), *, edge_length: float, elements: str = 
     _check_mesh_options(edge_length, elements)
     outer = _loop_points(boundary, "planform boundary")
     inner = [_loop_points(h, f"planform hole {k + 1}") for k, h in enumerate(holes)]
+    _check_loops([outer] + inner)
     _check_size(_polygon_area(outer), edge_length)
     with gmsh_session("polygon") as gmsh:
         g = gmsh.model.geo
