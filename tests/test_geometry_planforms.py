@@ -142,3 +142,12 @@ HOLE = [[6.0, 6.0, 0.0], [14.0, 6.0, 0.0], [14.0, 14.0, 0.0], [6.0, 14.0, 0.0]]
 def test_loops_gmsh_cannot_mesh_are_refused_before_meshing(boundary, holes, message):
     with pytest.raises(ModelError, match=message):
         polygon_planform(boundary, holes, edge_length=1.0)
+
+
+def test_an_edge_length_far_too_small_is_refused_by_size_not_by_overflow():
+    from shellform.scene.checks import grid_shape
+
+    with pytest.raises(ModelError, match="at most"):
+        polygon_planform(SQUARE, [HOLE], edge_length=5e-301)
+    ni, nj = grid_shape({"type": "polygon", "boundary": np.array(SQUARE), "edge_length": 5e-301})
+    assert ni * nj > 10**20  # an upper estimate the size check refuses, not an overflow

@@ -85,7 +85,7 @@ def _loop_points(points, what: str) -> np.ndarray:
 
 
 def _check_size(area: float, edge_length: float) -> None:
-    n = area / edge_length**2
+    n = area / edge_length / edge_length  # not edge_length**2: that underflows to 0 for a tiny length
     if n > MAX_PLANFORM_NODES:
         raise ModelError(f"planform: edge_length {edge_length:g} m would give about {n:,.0f} nodes on "
                          f"{area:.4g} m^2; at most {MAX_PLANFORM_NODES:,} are allowed")

@@ -228,7 +228,8 @@ def grid_shape(geometry: dict) -> tuple[int, int]:
             return 1, 1
         pts = (np.asarray(geometry["boundary"]) if geometry["type"] == "polygon"
                else np.concatenate([c["control_points"] for c in geometry["curves"]]))
-        size = np.ptp(pts, axis=0)[:2] / geometry["edge_length"]
+        # capped: an edge length of 1e-300 m must reach the size check below, not overflow here
+        size = np.minimum(np.ptp(pts, axis=0)[:2] / geometry["edge_length"], 1e12)
         return int(np.ceil(size[0])) + 1, int(np.ceil(size[1])) + 1
     if geometry["type"] in ("ellipse", "disk"):
         return geometry["n"] + 1, geometry["n"] + 1
@@ -240,7 +241,8 @@ def _check_grid(scene: dict) -> None:
     g = scene["geometry"]
     ni, nj = grid_shape(g)
     if ni * nj > MAX_NODES:
-        key = "geometry.n" if g["type"] in ("ellipse", "disk") else "geometry.n_i"
+        key = ("geometry.n" if g["type"] in ("ellipse", "disk")
+               else "geometry.edge_length" if g["type"] in MESHED_PLANFORMS else "geometry.n_i")
         raise SceneError(key, f"the grid would have {ni} x {nj} = {ni * nj:,} nodes; at most {MAX_NODES:,} are "
                          "allowed")
     if g["type"] == "bspline":
