@@ -203,6 +203,33 @@ def test_limit_points_found_whatever_the_stiffness(EA):
     assert abs(limits[0] - P) < 1e-6 * P
 
 
+# -- a sharp limit point: the link models with tiny imperfections ------------------------------------
+@pytest.mark.parametrize("kind, sign", [("symmetric", 1.0), ("asymmetric", -1.0)])
+@pytest.mark.parametrize("amplitude", [1e-7, 1e-6, 1e-5])
+def test_sharp_limit_point_of_a_small_imperfection_is_not_jumped(kind, sign, amplitude):
+    """A tiny imperfection turns the path through a fold within a few 1e-3 of the strut length; a
+    long step from below it converged onto the complementary branch (one negative eigenvalue, no
+    turn of dp/ds) and was reported as a bifurcation 6 to 11 % above the largest load the model
+    carries. With the tracer's default step angle the path must end at its limit point."""
+    import tomllib
+
+    from shellform.scene import parse_scene
+    from shellform.solvers.continuation import ContinuationOptions
+    from shellform.studies.link_models import critical_load, exact_knockdown, link_scene
+    from shellform.studies.sample import imperfect_model, trace_to_instability
+
+    scene = parse_scene(tomllib.loads(link_scene(kind)))
+    delta = np.zeros((3, 3))
+    delta[1, 0] = sign * amplitude
+    res = trace_to_instability(scene, imperfect_model(scene, delta), ContinuationOptions.max_angle_deg)
+    assert res.success and res.events, res.message
+    ev = res.events[0]
+    assert ev.kind == "limit" and ev.located, (ev.kind, ev.lam, ev.message)
+    assert ev.lam / critical_load(kind) == pytest.approx(exact_knockdown(kind, sign * amplitude), abs=1e-6)
+    # no point of the path is above the limit load
+    assert np.max(res.table["lam"]) <= ev.lam * (1 + 1e-9)
+
+
 def sway_frame():
     s = Structure([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]])
     s.add_bars([[0, 3], [1, 2], [2, 3]], EA=1e4)

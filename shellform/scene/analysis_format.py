@@ -5,6 +5,7 @@ buckling, indentation, time stepping and imperfection studies (parts of
 from __future__ import annotations
 
 from ..mra.formfind import COARSE_START_NODES
+from ..solvers.continuation.options import ContinuationOptions
 from ..solvers.relaxation.options import Refinements, RelaxationOptions
 from .schema import NONNEGATIVE as _NONNEG
 from .schema import POSITIVE as _POS
@@ -192,7 +193,7 @@ STUDY = Table(
         "confidence": Key("float", "Confidence level of the fractile's distribution-free interval.", default=0.95,
                           minimum=0.5, maximum=0.9999),
         "max_step_angle": Key("float", "Largest angle between a continuation step's prediction and its converged "
-                              "point (degrees): small values keep a path with a sharp limit point (a small "
-                              "imperfection) on its branch.", default=1.0, minimum=0.01, maximum=45.0),
+                              "point (degrees); a step turned further is taken again, shorter.",
+                              default=ContinuationOptions.max_angle_deg, minimum=0.01, maximum=90.0),
     },
 )

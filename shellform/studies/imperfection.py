@@ -313,7 +313,7 @@ def _jumps(rows: list[dict]) -> list[str]:
         return []
     return [f"{len(jumped)} sample(s) lost stability at a bifurcation above the perfect structure's critical load "
             f"({', '.join(jumped[:5])}{', ...' if len(jumped) > 5 else ''}): their paths may have jumped to another "
-            "branch; a smaller analysis.continuation.initial_increment or study.max_step_angle keeps them on theirs"]
+            "branch; a smaller analysis.continuation.initial_increment keeps them on theirs"]
 
 
 def _figures(out: Path, summary: dict, rows: list[dict], settings: StudySettings, perfect: Perfect, scene: dict,

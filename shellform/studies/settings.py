@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
+from ..solvers.continuation.options import ContinuationOptions
 
 
 @dataclass(frozen=True)
@@ -24,7 +25,7 @@ class StudySettings:
     correlation_length: float | None = None
     fractile: float = 0.05
     confidence: float = 0.95
-    max_step_angle: float = 1.0
+    max_step_angle: float = ContinuationOptions.max_angle_deg
 
     @property
     def random(self) -> bool:

@@ -35,7 +35,7 @@ import scipy.sparse.linalg as spla
 from ..linear import SingularMatrixError, single_threaded
 from ..stability import DENSE_LIMIT, InertiaError, critical_modes, start_vector
 from .corrector import correct
-from .problem import StepFailure
+from .problem import BranchCrossing, LocationFailure, StepFailure
 from .results import PathEvent
 
 #: Most trial points of one location (a bisection to ``locate_tol = 1e-8`` takes 27).
@@ -57,8 +57,8 @@ def solve_between(tr, A, lo_pt, hi_pt, lo, hi, sigma):
     d_lo = tr.norm(u - lo_pt[0], p - lo_pt[1])
     d_hi = tr.norm(u - hi_pt[0], p - hi_pt[1])
     if d_lo > 2.0 * (sigma - lo) + 1e-12 * sigma or d_hi > 2.0 * (hi - sigma) + 1e-12 * sigma:
-        raise StepFailure(
-            f"bisection point at arc length {sigma:.3e} is not between its neighbours on the path "
+        raise BranchCrossing(
+            f"the point at arc length {sigma:.3e} inside the step is not between its neighbours on the path "
             "(another branch crosses this step)"
         )
     return u, p, q, r
@@ -210,11 +210,15 @@ def _end_trial(tr, kind, B, u0, p0, sign_A, n_A, ds_step) -> _Trial:
     return _Trial(ds_step, end, False, f, (B.t_du, B.t_dp), K)
 
 
-def locate(tr, kind, A, B, ds_step, n_A):
+def locate(tr, kind, A, B, ds_step, n_A, must_locate: bool = False):
     """Locate the event of ``kind`` between point A (sigma = 0) and the step end B (a StepPoint).
 
     Returns the :class:`PathEvent` at the bracket end past the event and that
-    point's ``(u, p, q)``.
+    point's ``(u, p, q)``. Raises :class:`BranchCrossing` when a point inside
+    the step is not on the path between A and B: B lies on another branch,
+    and the step must be taken again, shorter. Any other failure to locate
+    raises :class:`LocationFailure` when ``must_locate``, and otherwise gives
+    an event marked not located, with the reason.
     """
     t0 = time.perf_counter()
     u0, p0, tA_du, tA_dp = A
@@ -229,7 +233,13 @@ def locate(tr, kind, A, B, ds_step, n_A):
             lo.before = True
         lo, hi = _narrow(tr, kind, A, lo, hi, tr.o.locate_tol * ds_step, n_A)
         located = True
+    except BranchCrossing:
+        tr.timer.add("event_location", t0)
+        raise
     except (StepFailure, SingularMatrixError) as exc:
+        if must_locate:
+            tr.timer.add("event_location", t0)
+            raise LocationFailure(f"{kind} point not located: {exc}") from None
         last = str(exc)
     # report the bracket end past the event (the step end if location failed at once); at a limit
     # point the end with the smaller dp/ds, the nearer to the extremum of the parameter

@@ -32,6 +32,14 @@ class StepFailure(Exception):
         self.singular = singular
 
 
+class LocationFailure(StepFailure):
+    """A critical point inside a step could not be located (the step is taken again, shorter)."""
+
+
+class BranchCrossing(LocationFailure):
+    """A point inside a step lies off the path between the step's ends: the end is on another branch."""
+
+
 class Timer:
     """Wall time by part of the work (the result's ``timings``)."""
 

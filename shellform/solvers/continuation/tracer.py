@@ -26,7 +26,7 @@ from .branches import switch_at
 from .corrector import StepPoint, correct, land
 from .events import locate
 from .options import CONTROLS, ContinuationOptions
-from .problem import Problem, StepFailure, Timer
+from .problem import LocationFailure, Problem, StepFailure, Timer
 from .results import TABLE_COLUMNS, ContinuationResult, PathEvent, PathPoint
 from .snapshot import Checkpoint, save
 
@@ -310,8 +310,7 @@ class Tracer:
         self.cut_back = False
         A = (self.u, self.p, self.t_du, self.t_dp)
         n_A = self.n_neg
-        ds, B = self.take_step()
-        new_events = self.events_in_step(A, B, ds, n_A) if o.detect_events else []
+        ds, B, new_events = self.step_on_branch(A, n_A)
         hit_bound = (B.p >= hi_b and self.p < hi_b) or (B.p <= lo_b and self.p > lo_b) or not lo_b <= B.p <= hi_b
         if hit_bound and o.land_on_bounds:
             landed = land(self, B.u, B.p, lo_b, hi_b)
@@ -348,17 +347,48 @@ class Tracer:
                 raise StopIteration
         return self.stop_reason(new_events, hit_bound)
 
-    def events_in_step(self, A, B: StepPoint, ds: float, n_A: int) -> list[PathEvent]:
-        """The limit and bifurcation points between the last point A and the step's end B, located."""
+    def step_on_branch(self, A, n_A: int) -> tuple[float, StepPoint, list[PathEvent]]:
+        """One accepted step that stays on the branch of A, with the events inside it, located.
+
+        Near a sharp limit point a long step can converge onto another branch
+        that crosses the sphere of the arc-length constraint (the complementary
+        path of a slightly imperfect structure): its end then differs from A in
+        the count of negative eigenvalues without ``dp/ds`` turning, and it
+        would be reported as a bifurcation at a load the structure never
+        carries. Location finds it out, as a point inside the step that is not
+        between its ends or a path it cannot follow from A to the end; the step
+        is then taken again, halved. Only a step already at ``ds_min`` may keep
+        an event it could not locate (marked so); one that still ends on
+        another branch fails the run.
+        """
+        while True:
+            ds, B = self.take_step()
+            if not self.o.detect_events:
+                return ds, B, []
+            must_locate = 0.5 * ds >= self.ds_min
+            try:
+                return ds, B, self.events_in_step(A, B, ds, n_A, must_locate)
+            except LocationFailure as exc:
+                if not must_locate:
+                    raise StepFailure(
+                        f"step {self.step + 1}: every step from parameter {self.p:.6g} down to ds_min = "
+                        f"{self.ds_min:.3e} ends on another branch; last: {exc}") from None
+                self.rejected += 1
+                self.cut_back = True
+                self.ds = 0.5 * ds
+
+    def events_in_step(self, A, B: StepPoint, ds: float, n_A: int, must_locate: bool = False) -> list[PathEvent]:
+        """The limit and bifurcation points between the last point A and the step's end B, located
+        (``must_locate``: or a :class:`LocationFailure`)."""
         new_events = []
         turned = math.copysign(1.0, B.t_dp) != math.copysign(1.0, self.t_dp)
         dn = B.n_neg - n_A if (B.n_neg >= 0 and n_A >= 0) else 0
         if turned:
-            ev, _ = locate(self, "limit", A, B, ds, n_A)
+            ev, _ = locate(self, "limit", A, B, ds, n_A, must_locate)
             ev.n_negative_after = B.n_neg
             new_events.append(ev)
         if (not turned and dn != 0) or (turned and abs(dn) > 1):
-            ev, _ = locate(self, "bifurcation", A, B, ds, n_A)
+            ev, _ = locate(self, "bifurcation", A, B, ds, n_A, must_locate and not turned)
             if turned:
                 ev.located = False
                 ev.message = "bifurcation and limit point in one step; bracket is the whole step"
