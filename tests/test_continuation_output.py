@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -40,6 +41,10 @@ def test_run_continuation_case_writes_files_and_resumes(tmp_path):
     assert [e["kind"] for e in on_disk["events"]] == ["limit", "limit"]
     assert abs(on_disk["events"][0]["parameter"] - P_CR) < 1e-9 * P_CR
     assert len(lines) == res.n_points + 1 and "negative eigenvalues" in lines[0]
+    # every status states the point's residual against its tolerance, and the residual meets it
+    for line in lines[:-1]:
+        residual, tolerance = map(float, re.search(r"residual (\S+) \(tolerance (\S+)\)", line).groups())
+        assert 0.0 <= residual <= tolerance, line
     # started again: the finished run is picked up from its checkpoint, not recomputed
     lines2 = []
     res2, _ = run_continuation_case(system, tmp_path, "load", progress=lines2.append, **opts)

@@ -95,7 +95,8 @@ def run_continuation_case(system, out_dir, control: str = "load", files: PathFil
             progress(Status(
                 f"step {pt.step:4d}  branch {pt.branch}  parameter {pt.parameter: .6e}  load {pt.load: .6e}  "
                 f"displacement {pt.displacement: .6e}  negative eigenvalues {pt.n_negative}  "
-                f"iterations {pt.iterations}", path_fraction(pt, options)))
+                f"iterations {pt.iterations}  residual {pt.residual:.1e} (tolerance {pt.tolerance:.1e})",
+                path_fraction(pt, options)))
         return callback(pt) if callback is not None else None
 
     result = trace_path(system, control, callback=on_point,

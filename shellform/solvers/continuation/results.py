@@ -40,7 +40,12 @@ class PathLocation:
 
 @dataclass
 class PathPoint(PathLocation):
-    """One converged point of the path (what a progress callback receives)."""
+    """One converged point of the path (what a progress callback receives).
+
+    ``residual`` is the norm of the free residual at the point and
+    ``tolerance`` what equilibrium asks of it there (``rtol`` times the forces
+    in play at the point, plus ``atol``).
+    """
 
     step: int
     branch: int
@@ -49,6 +54,8 @@ class PathPoint(PathLocation):
     ds: float
     q: np.ndarray
     monitors: dict[str, float] = field(default_factory=dict)
+    residual: float = float("nan")
+    tolerance: float = float("nan")
 
 
 @dataclass

@@ -23,7 +23,7 @@ from ..mechanism import describe_soft_modes
 from ..stability import DENSE_LIMIT, InertiaError, inertia, nearest_eigenvalue
 from ..step_bounds import FOLD_OVERSHOOT, fold_distance
 from .branches import switch_at
-from .corrector import StepPoint, correct, land
+from .corrector import StepPoint, correct, equilibrium, land
 from .events import locate
 from .options import CONTROLS, ContinuationOptions
 from .problem import LocationFailure, Problem, StepFailure, Timer
@@ -199,9 +199,13 @@ class Tracer:
     # -- recording ---------------------------------------------------------------------------
     def record(self, q, r, p, iterations, ds, n_neg):
         mon = self.monitor_values(q, p)
+        # the point's own forces in play, which the next step's corrector would compute first anyway
+        norm = float(np.linalg.norm(r[self.free]))
+        check = equilibrium(self, norm, r, p, norm)
         point = PathPoint(
             **self.location(q, r, p, self.s), step=self.step, branch=self.branch,
             n_negative=int(n_neg), iterations=int(iterations), ds=float(ds), q=q, monitors=mon,
+            residual=check.residual, tolerance=check.tolerance,
         )
         for c in TABLE_COLUMNS:
             self.table[c].append(getattr(point, c))
