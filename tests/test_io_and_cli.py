@@ -208,6 +208,18 @@ def test_continuation_scene_writes_path_events_and_plot(tmp_path):
     assert (out / "load_displacement.png").stat().st_size > 1000
 
 
+@pytest.mark.parametrize("critical_rtol", [1e-2, 1e-6, 1e-10])
+def test_the_scene_sets_the_tolerance_of_the_critical_load(tmp_path, critical_rtol):
+    scene = tmp_path / "path.toml"
+    scene.write_text(CONTINUATION + f"critical_rtol = {critical_rtol!r}\n")
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    limit = [e for e in json.loads((tmp_path / "out" / "summary.json").read_text())["events"]
+             if e["kind"] == "limit"][0]
+    alpha = np.arctan(0.2)
+    p_cr = 2 * 1.0e4 * np.sin(np.arccos(np.cos(alpha) ** (1 / 3))) ** 3
+    assert limit["located"] and abs(limit["load"] - p_cr) <= critical_rtol * p_cr
+
+
 def test_interrupted_continuation_resumes_from_its_checkpoint(tmp_path):
     from shellform.io.table import read_csv
 

@@ -174,6 +174,7 @@ def path_options(scene: dict, structure, system) -> tuple[dict, str | None, Call
         constraint=c["constraint"], stability=c["stability"], on_bifurcation=c["on_bifurcation"],
         branch_side=c["branch_side"], rtol=a["rtol"], fixed_lam=a["load_factor"], fixed_mu=a["prescribed"],
         q0=scenes.scene_start_state(scene, structure), eigenvalue_column=c["eigenvalue_column"],
+        critical_rtol=c["critical_rtol"],
     )
     if c["initial_increment"] is not None:
         options["initial_increment"] = c["initial_increment"]

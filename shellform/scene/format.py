@@ -7,6 +7,7 @@ The machinery that checks a value against a key and writes the reference is
 
 from __future__ import annotations
 
+from ..solvers.continuation.options import ContinuationOptions
 from .analysis_format import BUCKLING, DYNAMICS, INDENTATION, LENGTHS, RELAXATION, START_SHAPE, STUDY
 from .schema import NONNEGATIVE as _NONNEG
 from .schema import POSITIVE as _POS
@@ -395,6 +396,9 @@ SCENE = Table(
                         "eigenvalue_column": Key("bool", "Also write the eigenvalue of the tangent nearest zero at "
                                                  "every point (column 'eigenvalue' of path.csv; a Lanczos run "
                                                  "per point).", default=False),
+                        "critical_rtol": Key("float", "Relative tolerance to which the load (the path parameter) "
+                                             "of every limit and bifurcation point is located.",
+                                             default=ContinuationOptions.critical_rtol, minimum=1e-12, maximum=0.1),
                         "on_bifurcation": Key("str", "At a bifurcation: stay on the primary branch, follow the "
                                               "secondary one, or stop.", default="continue",
                                               choices=("continue", "switch", "stop")),
