@@ -31,14 +31,14 @@ from __future__ import annotations
 import numpy as np
 
 from .rod_hinge import (
-    BinormalJacobian,
     HingeEffect,
+    binormal_energy_derivatives,
     curvature_binormal_jacobian,
-    hessian_of_projected_binormal,
     material_curvature_term,
     material_curvature_value,
+    project_to_edges,
 )
-from .rod_kinematics import curvature_binormal, dot, material_curvatures, material_frames
+from .rod_kinematics import curvature_binormal, material_curvatures, material_frames
 from .base import LineResults
 from .rod_output import EdgeSections, edge_means
 
@@ -99,63 +99,77 @@ class RodBending(HingeEffect):
 
     def _local(self, q, order):
         t0, t1, l0, l1, theta = self._geometry(q)
-        c, a = self.curved, self.aniso
+        res = binormal_energy_derivatives(t0, t1, l0, l1, order)
+        e = res[0] + self._const
         if order == 0:
-            kb = curvature_binormal(t0, t1)
-            e = dot(kb, kb) + self._const
-            for j, te in enumerate((t0, t1)):
-                if c.size:
-                    frame = self._stored_frame(self.hinge_edges[c, j])
-                    e[c] -= material_curvature_value(kb[c], te[c], frame, self._w_bar[c, j], theta[c, j])
-                if a.size:
-                    frame = self._stored_frame(self.hinge_edges[a, j])
-                    w1, w2 = (material_curvature_value(kb[a], te[a], frame, np.broadcast_to(u, (a.size, 2)),
-                                                       theta[a, j]) for u in _COMPONENT)
-                    e[a] += self._split * (w1 * w1 - w2 * w2)
+            if self.curved.size or self.aniso.size:
+                self._add_frame_energies(t0, t1, theta, e)
             return (self.k * e,)
-        kb, chi, J = curvature_binormal_jacobian(t0, t1)
-        n = len(t0)
-        e = dot(kb, kb) + self._const
-        g = np.zeros((n, 8))
-        g[:, :6] = 2.0 * np.einsum("nk,nka->na", kb, J)
+        n = len(e)
+        g = np.zeros((8, n))
+        g[:6] = res[1]
         H = None
         if order == 2:
-            H = np.zeros((n, 8, 8))
-            H[:, :6, :6] = 2.0 * np.einsum("nka,nkb->nab", J, J) + 2.0 * hessian_of_projected_binormal(
-                t0, t1, kb, chi, J, kb
-            )
-        if c.size:
-            for j in (0, 1):
-                edges = self.hinge_edges[c, j]
-                f, gj, Hj = material_curvature_term(
-                    t0[c], t1[c], BinormalJacobian(kb[c], chi[c], J[c]), j, self._stored_frame(edges),
-                    self._w_bar[c, j], theta[c, j],
-                )
-                e[c] -= f
-                g[c] -= gj
+            H = np.zeros((8, 8, n))
+            H[:6, :6] = res[2]
+        for sub, terms in ((self.curved, self._curvature_terms), (self.aniso, self._anisotropy_terms)):
+            if sub.size:
+                T0, T1 = t0[:, sub].T, t1[:, sub].T
+                es, gs, Hs = terms(T0, T1, curvature_binormal_jacobian(T0, T1), theta[:, sub].T)
+                gz, Hz = project_to_edges(t0[:, sub], t1[:, sub], l0[sub], l1[sub], gs.T,
+                                          None if H is None else Hs.transpose(1, 2, 0))
+                e[sub] += es
+                g[:, sub] += gz
                 if H is not None:
-                    H[c] -= Hj
-        if a.size:
-            self._add_anisotropy(t0[a], t1[a], BinormalJacobian(kb[a], chi[a], J[a]), theta[a], e, g, H)
+                    H[:, :, sub] += Hz
         k = self.k
-        g *= k[:, None]
+        g *= k
         if H is not None:
-            H *= k[:, None, None]
+            H *= k
         return k * e, g, H
 
-    def _add_anisotropy(self, t0, t1, binormal, theta, e, g, H) -> None:
-        """Add ``d / (2 a) sum_j (omega_1^2 - omega_2^2)`` and its derivatives at the anisotropic hinges."""
+    def _add_frame_energies(self, t0, t1, theta, e) -> None:
+        """Add the material-frame terms of the curved and anisotropic hinges to the energies ``e``."""
+        c, a = self.curved, self.aniso
+        for j in (0, 1):
+            te = (t0, t1)[j]
+            if c.size:
+                kb = curvature_binormal(t0[:, c].T, t1[:, c].T)
+                frame = self._stored_frame(self.hinge_edges[c, j])
+                e[c] -= material_curvature_value(kb, te[:, c].T, frame, self._w_bar[c, j], theta[j, c])
+            if a.size:
+                kb = curvature_binormal(t0[:, a].T, t1[:, a].T)
+                frame = self._stored_frame(self.hinge_edges[a, j])
+                w1, w2 = (material_curvature_value(kb, te[:, a].T, frame, np.broadcast_to(u, (a.size, 2)),
+                                                   theta[j, a]) for u in _COMPONENT)
+                e[a] += self._split * (w1 * w1 - w2 * w2)
+
+    def _curvature_terms(self, t0, t1, binormal, theta):
+        """``-kb . (W^0 + W^1)`` of the curved hinges with its derivatives over the tangents (hinge-major)."""
+        c = self.curved
+        e, g, H = np.zeros(c.size), np.zeros((c.size, 8)), np.zeros((c.size, 8, 8))
+        for j in (0, 1):
+            f, gj, Hj = material_curvature_term(t0, t1, binormal, j, self._stored_frame(self.hinge_edges[c, j]),
+                                                self._w_bar[c, j], theta[:, j])
+            e -= f
+            g -= gj
+            H -= Hj
+        return e, g, H
+
+    def _anisotropy_terms(self, t0, t1, binormal, theta):
+        """``d / (2 a) sum_j (omega_1^2 - omega_2^2)`` of the anisotropic hinges, with derivatives over the tangents."""
         a = self.aniso
         c = self._split
+        e, g, H = np.zeros(a.size), np.zeros((a.size, 8)), np.zeros((a.size, 8, 8))
         for j in (0, 1):
             frame = self._stored_frame(self.hinge_edges[a, j])
             for sign, unit in zip((1.0, -1.0), _COMPONENT):
                 f, gf, Hf = material_curvature_term(t0, t1, binormal, j, frame, np.broadcast_to(unit, (a.size, 2)),
                                                     theta[:, j])
-                e[a] += sign * c * f * f
-                g[a] += (2.0 * sign * c * f)[:, None] * gf
-                if H is not None:
-                    H[a] += (2.0 * sign * c)[:, None, None] * (gf[:, :, None] * gf[:, None, :] + f[:, None, None] * Hf)
+                e += sign * c * f * f
+                g += (2.0 * sign * c * f)[:, None] * gf
+                H += (2.0 * sign * c)[:, None, None] * (gf[:, :, None] * gf[:, None, :] + f[:, None, None] * Hf)
+        return e, g, H
 
     def side_moments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Material curvature and bending moment at every hinge, in the frame of each of its edges.

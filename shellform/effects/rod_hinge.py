@@ -5,19 +5,32 @@ A *hinge* is an interior node ``x_1`` of a rod with its two edges
 ``theta^0, theta^1``: a stencil of 11 DOFs ``(x_0, x_1, x_2, theta^0, theta^1)``.
 
 Both energies depend on the positions only through the unit tangents
-``t^j = e^j / |e^j|`` (the rest Voronoi length is a constant). The derivatives
-are therefore written in three layers, each exact:
+``t^j = e^j / l^j`` (the rest Voronoi length is a constant). Their derivatives
+are written over ``z = (e^0, e^1, theta^0, theta^1)`` in closed form, and
+carried to the stencil DOFs by differences of node blocks
+(:func:`stencil_gradient`, :func:`stencil_hessian`): ``e^0 = x_1 - x_0`` and
+``e^1 = x_2 - x_1``, so no matrix product is needed for that step.
 
-1. with respect to ``y = (t^0, t^1, theta^0, theta^1)`` (8 variables), where
-   every quantity is a rational function of the tangents (curvature binormal,
-   parallel-transported directors, the spherical-triangle expressions of the
-   reference twist) or a sine/cosine of the angles. The tangents are treated
-   as free 3-vectors: any smooth extension off the unit sphere gives the same
-   derivatives once composed with the normalisation of step 2;
-2. through the normalisation ``t = e / |e|`` to ``z = (e^0, e^1, theta^0, theta^1)``;
-3. through the constant map from the stencil DOFs to the edge vectors.
+The chain rule through the normalisation ``t = e / l``, with the projector
+``P = I - t t^T``, is
 
-All functions are vectorised over hinges (leading axis ``n``).
+    dF/de = P g / l,
+    d2F/de_a de_b = P_a H_ab P_b / (l_a l_b) - delta_ab (W_a + W_a^T) / l_a^2,
+    W = t g^T + (g . t) (I / 2 - 3/2 t t^T),
+
+``g`` and ``H`` the derivatives over the tangents taken as free 3-vectors (any
+smooth extension off the unit sphere gives the same result once composed with
+the normalisation). Every term of the hinge Hessians over the tangents is an
+outer product of two vectors, a multiple of the identity or a cross-product
+matrix, so the projections are applied to vectors, and the products
+``P_0 M P_1`` of the off-diagonal blocks are expanded into outer products.
+
+Array layout: the closed-form functions work on *component-major* arrays with
+the hinge index last (vectors ``(3, h)``, Hessians ``(8, 8, h)``), so that every
+arithmetic operation runs over all hinges on contiguous memory; the effects'
+Hessian patterns follow the same order (entry-major, ``(11, 11, h)``). The
+layered dense form of the same derivatives (over the tangents, then through
+dense 0/+-1 maps) serves as the reference in the tests.
 
 Conventions (Bergou et al. 2008): curvature binormal
 ``kb = 2 t^0 x t^1 / (1 + t^0 . t^1)``; material curvature of edge ``j`` at the
@@ -32,13 +45,61 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .base import Effect, element_pattern, scatter
+from .base import Effect
 from .rod_kinematics import dot, skew
 
 _I3 = np.eye(3)
 
 
-# -- layer 1: curvature binormal ------------------------------------------------------
+# -- component-major vector algebra (vectors (3, h), matrices (3, 3, h)) --------------------
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.subtract(a[1] * b[2], a[2] * b[1], out=out[0])
+    np.subtract(a[2] * b[0], a[0] * b[2], out=out[1])
+    np.subtract(a[0] * b[1], a[1] * b[0], out=out[2])
+    return out
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a b^T`` for stacks of vectors ``(k, h)`` and ``(m, h)``: shape ``(k, m, h)``."""
+    return a[:, None] * b[None]
+
+
+def _add_skew(M: np.ndarray, a: np.ndarray) -> None:
+    """``M += [a]_x`` (the cross-product matrix of ``a``) in place; ``M`` (3, 3, h)."""
+    M[0, 1] -= a[2]
+    M[0, 2] += a[1]
+    M[1, 0] += a[2]
+    M[1, 2] -= a[0]
+    M[2, 0] -= a[1]
+    M[2, 1] += a[0]
+
+
+def _add_diagonal(M: np.ndarray, d: np.ndarray) -> None:
+    """``M += d I`` in place; ``M`` (3, 3, h), ``d`` (h,)."""
+    for i in range(3):
+        M[i, i] += d
+
+
+def _project(v: np.ndarray, t: np.ndarray, inv_l: np.ndarray) -> np.ndarray:
+    """``P v / l`` with ``P = I - t t^T``: a derivative over a tangent carried to its edge vector."""
+    return (v - _dot(v, t) * t) * inv_l
+
+
+def _subtract_curvature(U: np.ndarray, t: np.ndarray, g: np.ndarray, scale: np.ndarray) -> None:
+    """``U -= scale W`` with ``W = t g^T + (g . t) (I / 2 - 3/2 t t^T)`` (the normalisation's own term)."""
+    gt = _dot(g, t)
+    U -= _outer(scale * t, g - (1.5 * gt) * t)
+    _add_diagonal(U, -0.5 * scale * gt)
+
+
+# -- the material-frame terms of curved and anisotropic hinges, over the tangents -------
 
 
 class BinormalJacobian(NamedTuple):
@@ -88,68 +149,7 @@ def hessian_of_projected_binormal(t0, t1, kb, chi, J, p):
     return H / chi[:, None, None]
 
 
-# -- layer 1: reference twist -------------------------------------------------------------
 
-
-def _atan2_derivatives(N, D, gN, gD, HN, HD, hessian=True):
-    """Value, gradient and (if asked) Hessian of ``2 atan2(N, D)``; ``HN``/``HD`` None mean zero."""
-    R = N * N + D * D
-    G = D[:, None] * gN - N[:, None] * gD
-    g = 2.0 * G / R[:, None]
-    if not hessian:
-        return 2.0 * np.arctan2(N, D), g, None
-    H = gN[:, :, None] * gD[:, None, :] - gD[:, :, None] * gN[:, None, :]
-    if HN is not None:
-        H += D[:, None, None] * HN - N[:, None, None] * HD
-    H /= R[:, None, None]
-    gR = 2.0 * (N[:, None] * gN + D[:, None] * gD)
-    H -= G[:, :, None] * gR[:, None, :] / (R * R)[:, None, None]
-    H = H + np.swapaxes(H, 1, 2)  # 2 * symmetric part
-    return 2.0 * np.arctan2(N, D), g, H
-
-
-def reference_twist_change(t0, t1, s0, s1, hessian=True):
-    """Change of the reference twist from the stored state, with derivatives over ``(t0, t1)``.
-
-    ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
-    :mod:`shellform.effects.rod_kinematics`), so that ``m(q) = m_stored + beta``.
-
-    Returns
-    -------
-    beta : ndarray (n,)
-    grad : ndarray (n, 6)
-    hess : ndarray (n, 6, 6), or None when ``hessian`` is False
-    """
-    n = len(t0)
-    # triangle (s0, t0, t1)
-    N1 = dot(s0, np.cross(t0, t1))
-    D1 = 1.0 + dot(s0, t0) + dot(t0, t1) + dot(t1, s0)
-    gN1 = np.concatenate([np.cross(t1, s0), np.cross(s0, t0)], axis=1)
-    gD1 = np.concatenate([s0 + t1, t0 + s0], axis=1)
-    HN1 = HD1 = None
-    if hessian:
-        HN1 = np.zeros((n, 6, 6))
-        S0 = skew(s0)
-        HN1[:, :3, 3:] = -S0
-        HN1[:, 3:, :3] = S0
-        HD1 = np.zeros((n, 6, 6))
-        HD1[:, :3, 3:] = _I3
-        HD1[:, 3:, :3] = _I3
-    w1, g1, H1 = _atan2_derivatives(N1, D1, gN1, gD1, HN1, HD1, hessian)
-    # triangle (s0, t1, s1): numerator and denominator linear in t1 alone
-    N2 = dot(s0, np.cross(t1, s1))
-    D2 = 1.0 + dot(s0, t1) + dot(t1, s1) + dot(s1, s0)
-    w2, g2, H2 = _atan2_derivatives(N2, D2, np.cross(s1, s0), s0 + s1, None, None, hessian)
-    g = -g1
-    g[:, 3:] -= g2
-    if not hessian:
-        return -(w1 + w2), g, None
-    H = -H1
-    H[:, 3:, 3:] -= H2
-    return -(w1 + w2), g, H
-
-
-# -- layer 1: material-frame term of the bending energy -----------------------------------
 
 
 def _transported_components(abc):
@@ -281,54 +281,245 @@ def material_curvature_term(t0, t1, binormal: BinormalJacobian, edge, frame, ome
     return f, g, H
 
 
-# -- layers 2 and 3: from tangents to stencil DOFs ------------------------------------
 
 
-def _stencil_map() -> np.ndarray:
-    """Constant map from stencil DOFs (x0, x1, x2, theta0, theta1) to (e0, e1, theta0, theta1)."""
-    B = np.zeros((8, 11))
-    B[0:3, 0:3] = -_I3
-    B[0:3, 3:6] = _I3
-    B[3:6, 3:6] = -_I3
-    B[3:6, 6:9] = _I3
-    B[6, 9] = 1.0
-    B[7, 10] = 1.0
-    return B
+# -- the isotropic bending term |kb|^2 over the edge vectors -------------------------------
 
 
-STENCIL_MAP = _stencil_map()
+def binormal_energy_derivatives(t0, t1, l0, l1, order=2):
+    """``|kb|^2`` and its gradient (6, h) and Hessian (6, 6, h) over ``(e^0, e^1)``.
 
+    With ``chi = 1 + t0 . t1``, ``w = t0 + t1`` and ``S_a = [t_a]_x``, the
+    Jacobian of the binormal over the edge vectors is
+    ``K = [(-2 S_1 - kb w^T) / (chi l0), (2 S_0 - kb w^T) / (chi l1)]``, so that
+    ``grad = 2 K^T kb``. The Hessian is ``2 (K^T K + sum_k kb_k Hess kb_k)``,
+    written as ``2 (U + U^T)`` with ``U`` collected below: two outer products
+    of 6-vectors and, per 3 x 3 block, outer products of 3-vectors, multiples
+    of the identity and one cross-product matrix.
 
-def to_stencil(t0, t1, l0, l1, g, H=None):
-    """Transform gradient (n, 8) and Hessian (n, 8, 8) over ``(t0, t1, theta0, theta1)``
-    to the 11 stencil DOFs ``(x0, x1, x2, theta0, theta1)``.
+    Parameters
+    ----------
+    t0, t1 : (3, h)
+        Unit tangents of the two edges.
+    l0, l1 : (h,)
+        Their lengths.
+    order : {0, 1, 2}
 
-    With ``t = e / l`` and ``P = I - t t^T``: ``dF/de = P g_t / l`` and
-    ``d2F/de2 = (P/l) H_tt (P/l) - (t g^T + g t^T + (g.t)(I - 3 t t^T)) / l^2``.
+    Returns
+    -------
+    f : (h,), and for ``order >= 1`` grad : (6, h), for ``order == 2`` hess : (6, 6, h)
     """
-    n = len(t0)
-    Pt = np.empty((n, 8, 8))
-    Pt[:] = 0.0
-    for k, (t, l) in enumerate(((t0, l0), (t1, l1))):
-        sl = slice(3 * k, 3 * k + 3)
-        Pt[:, sl, sl] = (_I3 - t[:, :, None] * t[:, None, :]) / l[:, None, None]
-    Pt[:, 6, 6] = 1.0
-    Pt[:, 7, 7] = 1.0
-    gz = np.einsum("nab,nb->na", Pt, g)
-    g11 = gz @ STENCIL_MAP
+    chi = 1.0 + _dot(t0, t1)
+    ichi = 1.0 / chi
+    kb = (2.0 * ichi) * _cross(t0, t1)
+    kk = _dot(kb, kb)
+    if order == 0:
+        return (kk,)
+    i0, i1 = 1.0 / l0, 1.0 / l1
+    a0 = 2.0 * _cross(t1, kb)  # -2 S_1^T kb
+    a1 = 2.0 * _cross(kb, t0)  # 2 S_0^T kb
+    w = t0 + t1
+    gh = np.empty((6,) + kk.shape)  # K^T kb
+    np.multiply(a0 - kk * w, ichi * i0, out=gh[:3])
+    np.multiply(a1 - kk * w, ichi * i1, out=gh[3:])
+    if order == 1:
+        return kk, 2.0 * gh
+    v = np.empty_like(gh)  # (w / l0, w / l1)
+    np.multiply(w, i0, out=v[:3])
+    np.multiply(w, i1, out=v[3:])
+    nu = v.copy()  # v + grad of chi over the edges
+    nu[:3] += (t1 - (chi - 1.0) * t0) * i0
+    nu[3:] += (t0 - (chi - 1.0) * t1) * i1
+    # K^T K = (L^T L - chi (gh v^T + v gh^T) - kk v v^T) / chi^2 with L = [-2 S_1 / l0, 2 S_0 / l1];
+    # the binormal's curvature adds -(gh g_chi^T + g_chi gh^T) / chi and the blocks below
+    U = _outer(-ichi * gh, nu)
+    U -= _outer((0.5 * kk * ichi * ichi) * v, v)
+    ichi2 = ichi * ichi
+    # diagonal blocks: L^T L / 2 = 2 (I - t_b t_b^T) / l_a^2, and the normalisation terms (g . t = kk / chi)
+    for a, (ta, tb, ia, aa) in enumerate(((t0, t1, i0, a0), (t1, t0, i1, a1))):
+        s = slice(3 * a, 3 * a + 3)
+        Uaa = U[s, s]
+        ia2 = ia * ia
+        Uaa -= _outer((2.0 * ichi2 * ia2) * tb, tb)
+        # W_a with the tangent-space gradient (aa - kk t_b) / chi of kb . kb / 2
+        Uaa -= _outer((ichi * ia2) * ta, aa - kk * tb - (1.5 * kk) * ta)
+        _add_diagonal(Uaa, (2.0 * ichi2 - 0.5 * kk * ichi) * ia2)
+    # off-diagonal block: 4 (t0 t1^T - (t0.t1) I) / (chi^2 l0 l1) - P0 (2 [kb]_x + kk I) P1 / (chi l0 l1)
+    alpha = ichi * i0 * i1
+    U01 = U[:3, 3:]
+    U01 += _outer(alpha * t0, kk * t0 + (4.0 * ichi + kk) * t1 - a1)
+    U01 += _outer(alpha * (kk * t1 - a0), t1)
+    _add_skew(U01, -2.0 * alpha * kb)
+    _add_diagonal(U01, -alpha * (4.0 * (chi - 1.0) * ichi + kk))
+    H = U + U.swapaxes(0, 1)
+    H *= 2.0
+    return kk, 2.0 * gh, H
+
+
+# -- the reference twist over the edge vectors ----------------------------------------------
+
+
+class TwistTerms(NamedTuple):
+    """The reference-twist change and what its Hessian is built from (component-major arrays)."""
+
+    beta: np.ndarray
+    grad: np.ndarray  # (6, h) over the edge vectors
+    grad_t: np.ndarray  # (6, h) over the tangents
+    parts: tuple | None
+
+
+def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2) -> TwistTerms:
+    """Change of the reference twist from the stored state, with its gradient over ``(e^0, e^1)``.
+
+    ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
+    :mod:`shellform.effects.rod_kinematics`), so that ``m(q) = m_stored + beta``;
+    ``Omega = 2 atan2(N, D)`` with ``N`` and ``D`` bilinear (first triangle) or
+    linear (second) in the tangents. For ``order == 2`` the returned ``parts``
+    feed :func:`reference_twist_hessian`.
+    """
+    x01 = _cross(t0, t1)
+    N1 = _dot(s0, x01)
+    D1 = 1.0 + _dot(t0, t1) + _dot(s0, t0 + t1)
+    gN1 = np.concatenate([_cross(t1, s0), _cross(s0, t0)])
+    gD1 = np.concatenate([s0 + t1, s0 + t0])
+    R1 = N1 * N1 + D1 * D1
+    G1 = D1 * gN1 - N1 * gD1
+    N2 = _dot(s0, _cross(t1, s1))
+    D2 = 1.0 + _dot(s0 + s1, t1) + _dot(s1, s0)
+    gN2 = _cross(s1, s0)
+    gD2 = s0 + s1
+    R2 = N2 * N2 + D2 * D2
+    G2 = D2 * gN2 - N2 * gD2
+    beta = -2.0 * (np.arctan2(N1, D1) + np.arctan2(N2, D2))
+    gt = (-2.0 / R1) * G1
+    gt[3:] -= (2.0 / R2) * G2
+    i0, i1 = 1.0 / l0, 1.0 / l1
+    g = np.concatenate([_project(gt[:3], t0, i0), _project(gt[3:], t1, i1)])
+    parts = None
+    if order == 2:
+        parts = (N1, D1, R1, G1, gN1, gD1, N2, D2, R2, G2, gN2, gD2, i0, i1)
+    return TwistTerms(beta, g, gt, parts)
+
+
+def reference_twist_hessian(t0, t1, s0, terms: TwistTerms, c, k) -> np.ndarray:
+    """``c Hess(beta) + 2 k grad(beta) grad(beta)^T`` over ``(e^0, e^1)``, shape (6, 6, h).
+
+    The Hessian of ``2 atan2(N, D)`` over the tangents is
+    ``2 (D H_N - N H_D) / R - (G g_R^T + g_R G^T) / R^2`` with
+    ``R = N^2 + D^2``, ``G = D g_N - N g_D``, ``g_R = 2 (N g_N + D g_D)``
+    (the antisymmetric part of ``grad G`` cancels). For the first triangle
+    ``H_N = [[0, -S], [S, 0]]`` (``S = [s0]_x``) and ``H_D = [[0, I], [I, 0]]``;
+    the second has ``H_N = H_D = 0``.
+    """
+    N1, D1, R1, G1, gN1, gD1, N2, D2, R2, G2, gN2, gD2, i0, i1 = terms.parts
+    g = terms.grad
+    chi1 = _dot(t0, t1)
+
+    def proj6(v):
+        return np.concatenate([_project(v[:3], t0, i0), _project(v[3:], t1, i1)])
+
+    gR1 = 2.0 * (N1 * gN1 + D1 * gD1)
+    # U + U^T is the result
+    U = _outer(k * g, g)
+    U += _outer((c / (R1 * R1)) * proj6(G1), proj6(gR1))
+    U[3:, 3:] += _outer((c / (R2 * R2)) * _project(G2, t1, i1), _project(2.0 * (N2 * gN2 + D2 * gD2), t1, i1))
+    # off-diagonal block of the first triangle: 2 c P0 (D1 [s0]_x + N1 I) P1 / (R1 l0 l1)
+    alpha = 2.0 * c * i0 * i1 / R1
+    U01 = U[:3, 3:]
+    # P0 M P1 = M - t0 (M^T t0)^T - (M t1) t1^T + (t0^T M t1) t0 t1^T,
+    # M^T t0 = N1 t0 - D1 (s0 x t0), M t1 = N1 t1 - D1 (t1 x s0), t0^T M t1 = N1 (t0.t1 - D1)
+    U01 -= _outer(alpha * t0, N1 * t0 - D1 * gN1[3:] - (N1 * (chi1 - D1)) * t1)
+    U01 -= _outer(alpha * (N1 * t1 - D1 * gN1[:3]), t1)
+    _add_skew(U01, (alpha * D1) * s0)
+    _add_diagonal(U01, alpha * N1)
+    # the normalisation's terms on the diagonal blocks
+    gt = terms.grad_t
+    _subtract_curvature(U[:3, :3], t0, gt[:3], c * i0 * i0)
+    _subtract_curvature(U[3:, 3:], t1, gt[3:], c * i1 * i1)
+    return U + U.swapaxes(0, 1)
+
+
+# -- from the edge vectors to the stencil -----------------------------------------------------
+
+
+def project_to_edges(t0, t1, l0, l1, g, H=None):
+    """Carry a gradient (8, h) and Hessian (8, 8, h) over ``(t0, t1, theta0, theta1)`` to ``z``.
+
+    The general form of the chain rule through the normalisation, for terms
+    given over the tangents (the material-frame terms of curved and
+    anisotropic hinges).
+    """
+    i0, i1 = 1.0 / l0, 1.0 / l1
+    gz = g.copy()
+    gz[:3] = _project(g[:3], t0, i0)
+    gz[3:6] = _project(g[3:6], t1, i1)
     if H is None:
-        return g11, None
-    Hz = Pt @ H @ Pt
-    for k, (t, l) in enumerate(((t0, l0), (t1, l1))):
-        sl = slice(3 * k, 3 * k + 3)
-        gt = g[:, sl]
-        gdt = dot(gt, t)
-        S = t[:, :, None] * gt[:, None, :]
-        S = S + np.swapaxes(S, 1, 2)
-        S += gdt[:, None, None] * (_I3 - 3.0 * t[:, :, None] * t[:, None, :])
-        Hz[:, sl, sl] -= S / (l * l)[:, None, None]
-    H11 = STENCIL_MAP.T @ Hz @ STENCIL_MAP
-    return g11, H11
+        return gz, None
+    Hz = H.copy()
+    for a, t in enumerate((t0, t1)):
+        s = slice(3 * a, 3 * a + 3)
+        Hz[:, s] -= _outer((Hz[:, s] * t).sum(axis=1), t)
+        Hz[s] -= _outer(t, (Hz[s] * t[:, None]).sum(axis=0))
+    scale = np.ones_like(g)
+    scale[:3] = i0
+    scale[3:6] = i1
+    Hz *= _outer(scale, scale)
+    for a, (t, ia) in enumerate(((t0, i0), (t1, i1))):
+        s = slice(3 * a, 3 * a + 3)
+        W = np.zeros((3, 3) + i0.shape)
+        _subtract_curvature(W, t, g[s], -ia * ia)
+        Hz[s, s] -= W + W.swapaxes(0, 1)
+    return gz, Hz
+
+
+def stencil_gradient(gz: np.ndarray) -> np.ndarray:
+    """Gradient over the stencil DOFs (11, h) from one over ``z`` (8, h): ``e^0 = x1 - x0``, ``e^1 = x2 - x1``."""
+    g = np.empty((11,) + gz.shape[1:])
+    np.negative(gz[:3], out=g[:3])
+    np.subtract(gz[:3], gz[3:6], out=g[3:6])
+    g[6:9] = gz[3:6]
+    g[9:] = gz[6:]
+    return g
+
+
+def stencil_hessian(Hz: np.ndarray) -> np.ndarray:
+    """Hessian over the stencil DOFs (11, 11, h) from a symmetric one over ``z`` (8, 8, h).
+
+    With the blocks ``A = H_{e0 e0}``, ``B = H_{e0 e1}``, ``C = H_{e1 e1}``,
+    ``a = H_{e0 theta}``, ``c = H_{e1 theta}``: ``x0 x0: A``, ``x0 x1: B - A``,
+    ``x0 x2: -B``, ``x1 x1: A - B - B^T + C``, ``x1 x2: B - C``, ``x2 x2: C``,
+    ``x0 theta: -a``, ``x1 theta: a - c``, ``x2 theta: c``; the lower blocks
+    are the transposes.
+    """
+    H = np.empty((11, 11) + Hz.shape[2:])
+    A, B, C = Hz[:3, :3], Hz[:3, 3:6], Hz[3:6, 3:6]
+    a, c = Hz[:3, 6:], Hz[3:6, 6:]
+    H[:3, :3] = A
+    np.subtract(B, A, out=H[:3, 3:6])
+    np.negative(B, out=H[:3, 6:9])
+    x11 = H[3:6, 3:6]
+    np.subtract(A, B, out=x11)
+    x11 -= B.swapaxes(0, 1)
+    x11 += C
+    np.subtract(B, C, out=H[3:6, 6:9])
+    H[6:9, 6:9] = C
+    np.negative(a, out=H[:3, 9:])
+    np.subtract(a, c, out=H[3:6, 9:])
+    H[6:9, 9:] = c
+    H[9:, 9:] = Hz[6:, 6:]
+    H[3:6, :3] = H[:3, 3:6].swapaxes(0, 1)
+    H[6:9, :6] = H[:6, 6:9].swapaxes(0, 1)
+    H[9:, :9] = H[:9, 9:].swapaxes(0, 1)
+    return H
+
+
+def stencil_pattern(stencil: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """COO pattern of the stencil Hessians in the order of a C-contiguous ``(11, 11, h)`` value array."""
+    s = np.ascontiguousarray(stencil.T)  # (11, h)
+    k, h = s.shape
+    rows = np.broadcast_to(s[:, None, :], (k, k, h)).ravel()
+    cols = np.broadcast_to(s[None, :, :], (k, k, h)).ravel()
+    return rows.astype(np.int64), cols.astype(np.int64)
 
 
 # -- common machinery of the hinge effects ------------------------------------------------
@@ -338,9 +529,9 @@ class HingeEffect(Effect):
     """Base of the effects defined on rod hinges (11-DOF stencils) with shared reference frames.
 
     The energy of hinge ``i`` is ``k_i f_i`` with ``k_i = stiffness_i / (2 dl_i)``.
-    Subclasses implement ``_local(q, order)`` returning the energy per hinge and,
-    for ``order >= 1``, its gradient (h, 8) and, for ``order == 2``, Hessian
-    (h, 8, 8) over ``(t0, t1, theta0, theta1)``.
+    Subclasses implement ``_local(q, order)`` returning the energy per hinge
+    (h,) and, for ``order >= 1``, its gradient (8, h) and, for ``order == 2``,
+    Hessian (8, 8, h) over ``z = (e0, e1, theta0, theta1)`` (component-major).
 
     Parameters
     ----------
@@ -360,39 +551,35 @@ class HingeEffect(Effect):
         self.frames = frames
         self.stencil = np.asarray(stencil, dtype=np.int64)
         self.hinge_edges = frames.hinges
-        self._pattern = element_pattern(self.stencil)
+        self._dofs_t = np.ascontiguousarray(self.stencil.T)
+        self._pattern = stencil_pattern(self.stencil)
         self.voronoi = np.asarray(voronoi, dtype=float)
         self.k = np.asarray(stiffness, dtype=float) / (2.0 * self.voronoi)
 
     def _geometry(self, q):
-        t, l = self.frames.tangents(q)
-        h0, h1 = self.hinge_edges[:, 0], self.hinge_edges[:, 1]
-        theta = q[self.stencil[:, 9:]]
-        return t[h0], t[h1], l[h0], l[h1], theta
+        """Tangents (3, h) and lengths (h,) of both edges of every hinge, and the twist angles (2, h)."""
+        t0, t1, l0, l1 = self.frames.hinge_tangents(q)
+        return t0, t1, l0, l1, q[self._dofs_t[9:]]
 
     def energy(self, q):
         return float(np.sum(self._local(q, 0)[0]))
 
     def _stencil_forces(self, q):
-        """Gradient of every hinge's energy on its 11 stencil DOFs, shape (h, 11)."""
-        t0, t1, l0, l1, _ = self._geometry(q)
-        _, g = self._local(q, 1)[:2]
-        return to_stencil(t0, t1, l0, l1, g)[0]
+        """Gradient of every hinge's energy on its 11 stencil DOFs, shape (11, h)."""
+        return stencil_gradient(self._local(q, 1)[1])
 
     def gradient(self, q):
-        return scatter(self.n_dof, self.stencil, self._stencil_forces(q))
+        return np.bincount(self._dofs_t.ravel(), weights=self._stencil_forces(q).ravel(), minlength=self.n_dof)
 
     def force_magnitudes(self, q):
-        return scatter(self.n_dof, self.stencil, np.abs(self._stencil_forces(q)))
+        return np.bincount(self._dofs_t.ravel(), weights=np.abs(self._stencil_forces(q)).ravel(),
+                           minlength=self.n_dof)
 
     def hessian_pattern(self):
         return self._pattern
 
     def hessian_values(self, q):
-        t0, t1, l0, l1, _ = self._geometry(q)
-        _, g, H = self._local(q, 2)
-        _, H11 = to_stencil(t0, t1, l0, l1, g, H)
-        return H11.ravel()
+        return stencil_hessian(self._local(q, 2)[2]).ravel()
 
     def accept(self, q: np.ndarray) -> None:
         """Make ``q`` the stored reference state (time-parallel transport of the frames)."""

@@ -227,6 +227,7 @@ class ReferenceFrames:
         self.twist = signed_angle(moved, self.director[h1], self.tangent[h1])
         self._positions = x.copy()
         self.accepted = 0
+        self._hinge_cache = None
 
     # -- evaluation at a trial state ------------------------------------------------
     def tangents(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -234,6 +235,28 @@ class ReferenceFrames:
         e = edge_vectors(node_positions(q, self.n_nodes), self.edges)
         length = np.linalg.norm(e, axis=1)
         return e / length[:, None], length
+
+    def hinge_tangents(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Unit tangents (3, h) and lengths (h,) of the two edges of every hinge at ``q``, component-major.
+
+        The bending and twisting effects both need them at the same state: the
+        last result is kept with a copy of the node positions it was computed
+        from and returned again while the positions are equal (a comparison
+        costs a small part of the computation). The stored state plays no part.
+        """
+        x = node_positions(q, self.n_nodes)
+        cache = self._hinge_cache
+        if cache is not None and cache[0].shape == x.shape and np.array_equal(cache[0], x):
+            return cache[1]
+        e = edge_vectors(x, self.edges)
+        length = np.linalg.norm(e, axis=1)
+        t = (e / length[:, None]).T
+        h0, h1 = self.hinges[:, 0], self.hinges[:, 1]
+        result = (t[:, h0], t[:, h1], length[h0], length[h1])
+        for a in result:
+            a.flags.writeable = False
+        self._hinge_cache = (x.copy(), result)
+        return result
 
     def directors(self, q: np.ndarray) -> np.ndarray:
         """Reference directors at ``q``: stored directors time-parallel transported to the new tangents."""

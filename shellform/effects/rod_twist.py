@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rod_hinge import HingeEffect, reference_twist_change
+from .rod_hinge import HingeEffect, reference_twist_derivatives, reference_twist_hessian
 from .base import LineResults
 from .rod_output import edge_means
 
@@ -50,23 +50,28 @@ class RodTwisting(HingeEffect):
     def _local(self, q, order):
         if order == 0:
             return (self.k * (self.twist(q) - self.tau_bar) ** 2,)
-        t0, t1, _, _, theta = self._geometry(q)
-        h0, h1 = self.hinge_edges[:, 0], self.hinge_edges[:, 1]
-        beta, gb, Hb = reference_twist_change(
-            t0, t1, self.frames.tangent[h0], self.frames.tangent[h1], hessian=order == 2
-        )
-        dtau = theta[:, 1] - theta[:, 0] + self.frames.twist + beta - self.tau_bar
-        n = len(t0)
-        gtau = np.zeros((n, 8))
-        gtau[:, :6] = gb
-        gtau[:, 6] = -1.0
-        gtau[:, 7] = 1.0
+        t0, t1, l0, l1, theta = self._geometry(q)
+        stored = self.frames.tangent.T
+        s0, s1 = stored[:, self.hinge_edges[:, 0]], stored[:, self.hinge_edges[:, 1]]
+        terms = reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order)
+        dtau = theta[1] - theta[0] + self.frames.twist + terms.beta - self.tau_bar
         k2 = 2.0 * self.k
-        g = (k2 * dtau)[:, None] * gtau
+        c = k2 * dtau
+        n = len(dtau)
+        g = np.empty((8, n))
+        np.multiply(c, terms.grad, out=g[:6])
+        np.negative(c, out=g[6])
+        g[7] = c
         H = None
         if order == 2:
-            H = k2[:, None, None] * gtau[:, :, None] * gtau[:, None, :]
-            H[:, :6, :6] += (k2 * dtau)[:, None, None] * Hb
+            # tau's gradient over z is (grad beta, -1, 1)
+            H = np.empty((8, 8, n))
+            H[:6, :6] = reference_twist_hessian(t0, t1, s0, terms, c, self.k)
+            np.multiply(-k2, terms.grad, out=H[:6, 6])
+            np.multiply(k2, terms.grad, out=H[:6, 7])
+            H[6:, :6] = H[:6, 6:].swapaxes(0, 1)
+            H[6, 6] = H[7, 7] = k2
+            H[6, 7] = H[7, 6] = -k2
         return self.k * dtau**2, g, H
 
     def member_results(self, q):

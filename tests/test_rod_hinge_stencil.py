@@ -1,0 +1,85 @@
+"""The closed-form stencil derivatives of the rod hinge effects against the layered dense formulation."""
+
+import numpy as np
+import pytest
+from rod_hinge_reference import stencil_derivatives
+from test_rod_effects import network_from, random_lines
+
+from shellform.effects.rod_hinge import HingeEffect, project_to_edges, stencil_hessian
+
+
+def hinge_effects(net):
+    return [e for e in net.effects() if isinstance(e, HingeEffect)]
+
+
+def compare(net, q, rtol=1e-11):
+    for e in hinge_effects(net):
+        energy, g11, H11 = stencil_derivatives(e, q)
+        assert e.energy(q) == pytest.approx(float(np.sum(energy)), rel=1e-12, abs=1e-14 * np.abs(energy).sum())
+        g = e._stencil_forces(q).T
+        H = e.hessian_values(q).reshape(11, 11, -1).transpose(2, 0, 1)
+        scale_g = np.abs(g11).max(axis=1, keepdims=True) + 1e-300
+        scale_H = np.abs(H11).max(axis=(1, 2), keepdims=True) + 1e-300
+        assert np.all(np.abs(g - g11) <= rtol * scale_g), (e.name, np.max(np.abs(g - g11) / scale_g))
+        assert np.all(np.abs(H - H11) <= rtol * scale_H), (e.name, np.max(np.abs(H - H11) / scale_H))
+        # the global assembly of the same values
+        rows, cols = e.hessian_pattern()
+        assert rows.size == H.size
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("ratio", [None, "random"])
+def test_stencil_derivatives_match_the_layered_formulation(seed, ratio):
+    """Curved, twisted, closed, isotropic and anisotropic rods away from their stored frames."""
+    rng = np.random.default_rng(seed)
+    s, net = network_from(random_lines(rng, (3, 6, 9)), closed=(2,), natural=["rest", "straight", "rest"],
+                          twist=[0.3, 0.0, -0.2], seed=seed, ratio=ratio)
+    q1 = s.reference_state() + 0.2 * rng.normal(size=s.n_dof)
+    net.frames.update(q1)
+    q = q1 + 0.3 * rng.normal(size=s.n_dof)
+    compare(net, q)
+
+
+def test_stencil_derivatives_of_straight_rods_with_large_twist():
+    x = np.linspace(0, 1, 9)
+    line = np.stack([x, 0.2 * x**2, 0 * x], axis=1)
+    s, net = network_from([line], natural=["straight"])
+    rng = np.random.default_rng(5)
+    q = s.reference_state()
+    q[3 * s.n_nodes:] = np.linspace(0, 6 * np.pi, s.n_twist)
+    q[: 3 * s.n_nodes] += 0.05 * rng.normal(size=3 * s.n_nodes)
+    compare(net, q)
+
+
+def test_cached_tangents_follow_the_state():
+    """Two states evaluated alternately (and one changed in place) give each its own derivatives."""
+    rng = np.random.default_rng(7)
+    s, net = network_from(random_lines(rng, (5, 7)), natural=["rest", "straight"], twist=[0.1, 0.0])
+    qa = s.reference_state() + 0.1 * rng.normal(size=s.n_dof)
+    qb = qa + 0.1 * rng.normal(size=s.n_dof)
+    bend = hinge_effects(net)[0]
+    va, vb = bend.hessian_values(qa), bend.hessian_values(qb)
+    assert not np.allclose(va, vb)
+    assert np.array_equal(bend.hessian_values(qa), va)
+    q = qa.copy()
+    bend.hessian_values(q)
+    q[:] = qb
+    assert np.array_equal(bend.hessian_values(q), vb)
+
+
+def test_projection_and_stencil_expansion_are_the_dense_maps():
+    """The general chain rule through the normalisation and the block differences, on random data."""
+    from rod_hinge_reference import STENCIL_MAP, to_stencil
+
+    rng = np.random.default_rng(3)
+    n = 5
+    e0, e1 = rng.normal(size=(2, n, 3))
+    l0, l1 = np.linalg.norm(e0, axis=1), np.linalg.norm(e1, axis=1)
+    t0, t1 = e0 / l0[:, None], e1 / l1[:, None]
+    g = rng.normal(size=(n, 8))
+    H = rng.normal(size=(n, 8, 8))
+    H = H + H.transpose(0, 2, 1)
+    g11, H11 = to_stencil(t0, t1, l0, l1, g, H)
+    gz, Hz = project_to_edges(t0.T, t1.T, l0, l1, g.T, H.transpose(1, 2, 0))
+    assert np.allclose(gz.T @ STENCIL_MAP, g11, rtol=0, atol=1e-12 * np.abs(g11).max())
+    assert np.allclose(stencil_hessian(Hz).transpose(2, 0, 1), H11, rtol=0, atol=1e-12 * np.abs(H11).max())
