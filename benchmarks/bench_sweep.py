@@ -1,18 +1,25 @@
 """What a sweep costs beyond its cases: the sweep's wall time against the same cases in a plain loop.
 
 The cases are the chain of ``scenes/chain_dynamics.toml`` (implicit Euler time
-stepping, fixed step) with ``--duration`` seconds of motion, about a second of
-work each, swept over ``--cases`` values of the damping. The loop runs every
-case through ``run_case`` (what a sweep worker runs) in this process, after
-one untimed case has imported everything; its per-case wall times summed are
-the work. Each sweep runs the same cases into a fresh folder with
-``workers`` = 1 (in this process) and 2 (a pool of spawned processes, which
-import shellform afresh). The overhead is the sweep's wall time less the
-work shared among the workers, as a share of that:
+stepping, fixed step) with ``--duration`` seconds of motion (5 s: about a
+second of work each), swept over ``--cases`` values of the damping. The loop
+runs every case through ``run_case`` (what a sweep worker runs) in this
+process, after one untimed case has imported everything; its per-case wall
+times summed are the work. Each sweep runs the same cases into a fresh folder
+with ``workers`` = 1 (in this process) and 2 (a process pool). The overhead is
+the sweep's wall time less the work shared among the workers, as a share of
+that:
 
     overhead = (wall - work / workers) / (work / workers)
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py [--cases 20] [--duration 3.0] [--workers 1 2] [--rounds 3]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py [--cases 20] [--duration 5.0] [--workers 1 2]
+        [--rounds 3] [--start-methods default spawn]
+
+``--start-methods`` runs the pools of every round once per start method:
+``default`` is the runner's own choice (``fork`` here unless threads other
+than OpenBLAS's are live; see ``shellform/studies/runner.py``), the others
+are forced through ``SHELLFORM_START_METHOD``. A ``forkserver`` server starts
+once per process, so only the first round pays for its imports.
 
 Each round runs the loop and then the sweeps, and compares them with that
 round's loop; the summary gives the median of the rounds. The CPU time (this
@@ -26,6 +33,7 @@ low load.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
 import statistics
@@ -40,6 +48,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import tomllib
 
+from shellform.studies import runner
 from shellform.studies.sweep import run_case, run_sweep
 from shellform.studies.sweep_cases import expand, parse_param
 
@@ -50,7 +59,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 def chain_scene(folder: Path, duration: float) -> Path:
     """The chain scene with ``duration`` seconds of motion, written into ``folder``."""
     text = (ROOT / "scenes" / "chain_dynamics.toml").read_text()
-    marker = "duration = 3.0"
+    marker = "duration = 3.0"  # the scene's own line
     if marker not in text:
         raise SystemExit(f"scenes/chain_dynamics.toml has no {marker!r} line to set the duration in")
     path = folder / "chain.toml"
@@ -100,6 +109,25 @@ def plain_loop(cases, folder: Path) -> tuple[float, float, list[float]]:
     return time.perf_counter() - t0, cpu_seconds() - c0, walls
 
 
+@contextlib.contextmanager
+def start_method(method: str):
+    """Pools started by ``method`` inside the block (``default``, ``-``: the runner's own choice)."""
+    saved = os.environ.pop(runner.START_METHOD_VARIABLE, None)
+    if method not in ("default", "-"):
+        os.environ[runner.START_METHOD_VARIABLE] = method
+    try:
+        yield
+    finally:
+        os.environ.pop(runner.START_METHOD_VARIABLE, None)
+        if saved is not None:
+            os.environ[runner.START_METHOD_VARIABLE] = saved
+
+
+def chosen_method() -> str:
+    with start_method("default"):
+        return runner.start_method()
+
+
 def load() -> str:
     one, five, _ = os.getloadavg()
     return f"{one:.2f} (5 min: {five:.2f})"
@@ -108,8 +136,10 @@ def load() -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=20)
-    parser.add_argument("--duration", type=float, default=3.0, help="seconds of motion per case (sets the work)")
+    parser.add_argument("--duration", type=float, default=5.0, help="seconds of motion per case (sets the work)")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--start-methods", nargs="+", default=["default"],
+                        help="start methods of the pools: default (the runner's choice), fork, forkserver, spawn")
     parser.add_argument("--rounds", type=int, default=3, help="loop and sweeps this many times")
     parser.add_argument("--save", action="store_true", help="also write benchmarks/results/bench_sweep.md")
     args = parser.parse_args(argv)
@@ -127,38 +157,43 @@ def main(argv=None) -> int:
         cases = expand(tomllib.loads(scene.read_text()), [parse_param(param)], str(tmp))
         run_case(cases[0].data, str(tmp / "warm-up"), str(tmp))  # imports and first-call costs, untimed
         say(f"{len(cases)} cases: scenes/chain_dynamics.toml, duration {args.duration} s, `{param[:40]}...`; "
-            f"{os.cpu_count()} CPUs")
+            f"{os.cpu_count()} CPUs; the runner's own start method here: {chosen_method()}")
         say()
-        say("| round | run | workers | wall [s] | work / workers [s] | overhead [s] | overhead | CPU [s] "
+        say("| round | run | workers | start | wall [s] | work / workers [s] | overhead [s] | overhead | CPU [s] "
             "| CPU overhead | load average before |")
-        say("|---:|---|---:|---:|---:|---:|---:|---:|---:|---|")
-        overheads: dict[int, list[tuple[float, float]]] = {w: [] for w in args.workers}
+        say("|---:|---|---:|---|---:|---:|---:|---:|---:|---:|---|")
+        runs = [(w, "-") for w in args.workers if w == 1]
+        runs += [(w, m) for w in args.workers if w > 1 for m in args.start_methods]
+        overheads: dict[tuple[int, str], list[tuple[float, float]]] = {run: [] for run in runs}
         walls = []
         for r in range(args.rounds):
             before = load()
             loop_wall, loop_cpu, case_walls = plain_loop(cases, tmp / f"loop_{r}")
             walls += case_walls
             work = sum(case_walls)
-            say(f"| {r + 1} | plain loop | 1 | {loop_wall:.2f} | {work:.2f} | - | - | {loop_cpu:.2f} | - | {before} |")
-            for workers in args.workers:
+            say(f"| {r + 1} | plain loop | 1 | - | {loop_wall:.2f} | {work:.2f} | - | - | {loop_cpu:.2f} | - "
+                f"| {before} |")
+            for workers, method in runs:
                 before = load()
-                c0, t0 = cpu_seconds(), time.perf_counter()
-                rows = run_sweep(scene, [param], tmp / f"sweep_{r}_{workers}", workers=workers)
-                wall, cpu = time.perf_counter() - t0, cpu_seconds() - c0
+                with start_method(method):
+                    c0, t0 = cpu_seconds(), time.perf_counter()
+                    rows = run_sweep(scene, [param], tmp / f"sweep_{r}_{workers}_{method}", workers=workers)
+                    wall, cpu = time.perf_counter() - t0, cpu_seconds() - c0
                 bad = [row["case"] for row in rows if row["status"] != "finished"]
                 if bad:
-                    raise SystemExit(f"sweep with {workers} workers: cases {bad} did not finish")
+                    raise SystemExit(f"sweep with {workers} workers ({method}): cases {bad} did not finish")
                 share = work / workers
                 over, cpu_over = (wall - share) / share, (cpu - loop_cpu) / loop_cpu
-                overheads[workers].append((over, cpu_over))
-                say(f"| {r + 1} | sweep | {workers} | {wall:.2f} | {share:.2f} | {wall - share:.2f} | "
+                overheads[workers, method].append((over, cpu_over))
+                say(f"| {r + 1} | sweep | {workers} | {method} | {wall:.2f} | {share:.2f} | {wall - share:.2f} | "
                     f"{100 * over:.1f} % | {cpu:.2f} | {100 * cpu_over:.1f} % | {before} |")
         imports, first, second = fresh_process(scene, tmp / "fresh")
         say()
         say(f"cases: {min(walls):.2f} to {max(walls):.2f} s each in the loops (mean {sum(walls) / len(walls):.2f} s); "
             f"load average after: {load()}")
-        for workers, values in overheads.items():
-            say(f"median over {len(values)} round(s), {workers} worker(s): overhead "
+        for (workers, method), values in overheads.items():
+            how = "" if method == "-" else f" ({method})"
+            say(f"median over {len(values)} round(s), {workers} worker(s){how}: overhead "
                 f"{100 * statistics.median(v[0] for v in values):.1f} % of the wall time, "
                 f"{100 * statistics.median(v[1] for v in values):.1f} % of the CPU time")
         say()
