@@ -8,8 +8,11 @@ grids on a 10 m square hung from their boundary, slack 0.05, of about 1e2,
 1e3 and 1e4 nodes. Each size is timed ``--rounds`` times with a new slack
 each round (a new request, so a run), then once more with the last request
 repeated (answered from the server's cache). The table gives the median
-round trip, the server's run share (the relaxation alone, from the report)
-and the cached round trip.
+round trip, the server's run (the analysis with its files, ``wall_time_s`` of
+the report), the rest of the round trip (decoding the inputs, building the
+scene, reading the run's meshes back, encoding the outputs, HTTP and the
+client's decoding; median of the per-round differences), the cached round
+trip and the machine's load average before the size's first round.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_hops.py [--rounds 5] [--sizes 9 31 99]
 
@@ -80,7 +83,7 @@ def main() -> None:
     try:
         round_trip(server.url, body(8, 0.01))  # warm: imports, the mesher, the first factorisation
         for n in args.sizes:
-            times, runs = [], []
+            times, runs, load = [], [], os.getloadavg()[0]
             for k in range(args.rounds):
                 data = body(n, 0.05 + 1e-4 * k)
                 t, out = round_trip(server.url, data)
@@ -90,8 +93,9 @@ def main() -> None:
                 print(f"n = {(n + 1) ** 2:>6} nodes: {t:.3f} s round trip, run {report['wall_time_s']:.3f} s, "
                       f"{len(out['HangingNet'])} ropes", flush=True)
             cached, _ = round_trip(server.url, data)
+            rest = statistics.median(t - r for t, r in zip(times, runs))
             rows.append(((n + 1) ** 2, len(out["HangingNet"]), statistics.median(times), min(times), max(times),
-                         statistics.median(runs), cached))
+                         statistics.median(runs), rest, cached, load))
             print(f"  cached: {cached * 1e3:.1f} ms", flush=True)
     finally:
         server.shutdown()
@@ -106,13 +110,16 @@ def main() -> None:
         "A warm server in the same process; one round trip is encoding the inputs as Hops does, POST /solve, "
         "the run, and decoding every output (lines, shell mesh, numbers). Nets: a 10 m square hung from its "
         "boundary, slack 0.05 (changed by 1e-4 each round, so every round is a new run). Run: the server's "
-        "`wall_time_s` of the analysis (relaxation, inversion, files).",
+        "`wall_time_s` of the analysis (relaxation, inversion, files). Rest: the round trip less the run "
+        "(inputs, scene, reading the meshes back, encoding the outputs, HTTP, the client's decoding).",
         "",
-        "| nodes | ropes | round trip median [s] | min [s] | max [s] | of which the run [s] | repeated request (cache) [ms] |",
-        "|---:|---:|---:|---:|---:|---:|---:|",
+        "| nodes | ropes | round trip median [s] | min [s] | max [s] | of which the run [s] | rest [s] "
+        "| repeated request (cache) [ms] | load average before |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    for nodes, ropes, med, lo, hi, run, cached in rows:
-        lines.append(f"| {nodes:,} | {ropes:,} | {med:.3f} | {lo:.3f} | {hi:.3f} | {run:.3f} | {cached * 1e3:.1f} |")
+    for nodes, ropes, med, lo, hi, run, rest, cached, load in rows:
+        lines.append(f"| {nodes:,} | {ropes:,} | {med:.3f} | {lo:.3f} | {hi:.3f} | {run:.3f} | {rest:.3f} "
+                     f"| {cached * 1e3:.1f} | {load:.2f} |")
     lines += ["", "Target: under 0.3 s for 1e3 nodes, so that a slider feels live.", ""]
     OUT.write_text("\n".join(lines))
     print(f"written {OUT}")

@@ -50,8 +50,9 @@ def nearest_nodes(nodes: np.ndarray, points, tol: float, name: str) -> list[int]
     return [int(i) for i in idx]
 
 
-def line_pairs(points, cells) -> list:
-    return [[points[a], points[b]] for a, b in cells]
+def line_pairs(points, cells) -> np.ndarray:
+    """The end points of every line cell, shape (m, 2, 3)."""
+    return np.asarray(points, dtype=float)[np.asarray(cells, dtype=np.int64).reshape(-1, 2)]
 
 
 def report(summary: dict, keys) -> str:

