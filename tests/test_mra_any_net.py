@@ -140,3 +140,39 @@ def test_bad_any_net_input_names_the_key(change, key, words):
     with pytest.raises(SceneError) as info:
         parse_scene(scene)
     assert info.value.key == key and words in str(info.value)
+
+
+def _quad_l(tmp_path, elements="quads"):
+    from shellform.geometry.planforms import polygon_planform
+
+    net = polygon_planform([(0, 0, 0), (6, 0, 0), (6, 3, 0), (3, 3, 0), (3, 6, 0), (0, 6, 0)], edge_length=0.5,
+                           elements=elements)
+    cells = [("quad", net.quads)] if elements == "quads" else [("triangle", net.triangles)]
+    meshio.write(tmp_path / "l.vtu", meshio.Mesh(net.nodes, cells))
+    return {"geometry": {"type": "file", "file": "l.vtu"}, "supports": [{"groups": ["boundary"]}],
+            "ropes": {"slack": 0.05},
+            "rods": {"section": "rectangle", "depth": 0.03, "width": 0.05, "E": 10e9, "G": 0.6e9, "density": 500.0},
+            "analysis": {"type": "form_and_buckle", "buckling": {"load_factor_max": 200.0, "initial_increment": 2.0,
+                                                                 "max_steps": 150}}}
+
+
+def test_a_quad_mesh_file_is_form_found_erected_as_laths_and_buckled(tmp_path):
+    from shellform.analyses import run_scene
+
+    summary = run_scene(parse_scene(_quad_l(tmp_path), base_dir=tmp_path), tmp_path / "out")
+    b = summary["buckling"]
+    assert summary["converged"] and b["n_rods"] > 10 and b["critical_load_factor"] > 1.0
+    assert b["critical_kind"] in ("limit", "bifurcation")
+
+
+@pytest.mark.parametrize("source", ["file", "planform"])
+def test_laths_are_refused_on_triangles_before_any_form_finding(tmp_path, source):
+    scene = _quad_l(tmp_path, "triangles")
+    key = "geometry.file"
+    if source == "planform":
+        scene["geometry"] = {"type": "polygon", "boundary": [[0, 0, 0], [6, 0, 0], [6, 6, 0], [0, 6, 0]],
+                             "edge_length": 0.5, "elements": "triangles"}
+        key = "geometry.elements"
+    with pytest.raises(SceneError, match="straight edge chains of a quad net") as err:
+        parse_scene(scene, base_dir=tmp_path)
+    assert err.value.key == key

@@ -44,7 +44,7 @@ def test_every_example_is_covered():
 
 
 EXAMPLES = ["lattice_dome", "lattice_dome_imperfect", "chain_dynamics", "hemisphere_indentation", "barrel_vault",
-            "l_shape", "courtyard", "cable_net", "rod_gridshell"]
+            "l_shape", "l_shape_gridshell", "courtyard", "cable_net", "rod_gridshell"]
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
@@ -175,3 +175,24 @@ def test_example_scenes_parse_from_another_folder(monkeypatch, tmp_path):
     with pytest.raises(SceneError, match="geometry.file"):
         parse_scene({"geometry": {"type": "file", "file": "lattice_dome.obj"},
                      "members": [{"kind": "bar", "EA": 1.0}]})
+
+
+def test_l_shaped_timber_gridshell_is_erected_and_buckles_above_its_weight(run):
+    code, out, summary = run("l_shape_gridshell")
+    b = summary["buckling"]
+    # the unstructured quads' straight edge chains became laths, bent from straight into the form
+    assert b["n_rods"] > 20 and b["rest_shape"] == "straight" and b["section"]["section"] == "rectangle"
+    assert b["critical_kind"] in ("limit", "bifurcation") and b["critical_load_factor"] > 1.0
+    assert not summary.get("warnings")
+    events = json.loads((out / "buckling_path_events.json").read_text())["events"]
+    assert events[0]["located"] and events[0]["load"] == pytest.approx(b["critical_load_factor"], rel=1e-12)
+    # the critical point's state and mode, and the laths' internal forces, read back
+    critical = meshio.read(out / "buckling_path_critical_1.vtu")
+    mode = critical.point_data["mode"]
+    assert mode.shape == (len(critical.points), 3) and np.linalg.norm(mode) > 0
+    lines = {k: v["line"] for k, v in critical.cell_data_dict.items() if "line" in v}
+    for field in ("axial_force", "bending_moment_1", "bending_moment_2", "torque", "max_stress"):
+        assert field in lines and np.all(np.isfinite(lines[field])), field
+    assert np.abs(lines["bending_moment_1"]).max() > 0  # bent into the form: never zero-filled
+    table = read_csv(out / "buckling_path.csv")
+    assert table["lam"].max() <= b["critical_load_factor"] * (1 + 1e-9)

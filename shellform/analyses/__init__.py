@@ -101,4 +101,7 @@ def run_scene(scene: dict, out_dir, progress: Progress | None = None, resume: bo
         summary["wall_time_s"] = time.perf_counter() - t0
         summary["units"] = units_block()
         record.write(summary)
+        # the log keeps what the screen shows at the end of a run
+        for note in summary.get("warnings", []):
+            log(f"warning: {note}")
         return {**summary, "run_status": record.status, "converged": record.converged, "stages": record.stages}

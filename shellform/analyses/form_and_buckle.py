@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from ..errors import SceneError
 from ..io.summary import RunRecord
 from ..model import Structure
 from ..rods.section import RestShape, RodSection
@@ -14,8 +16,31 @@ from .form_finding import ROD_DEFAULTS, Progress, _find_form, grid_lines
 
 
 
+def rod_chains(grid) -> list[tuple[np.ndarray, bool]]:
+    """Where the laths of a found net run: ``(nodes, closed)`` for every rod.
+
+    A structured grid gives its grid lines; an unstructured quad net (a gmsh
+    planform, a mesh file) the straight edge chains of its quads and line
+    cells (:func:`~shellform.rods.mesh_lines.edge_chains`). Triangles make no
+    straight chains and are refused.
+    """
+    from ..rods.mesh_lines import edge_chains
+
+    if grid.structured:
+        return [(chain, False) for chain in grid_lines(grid)]
+    if len(grid.triangles):
+        raise SceneError("geometry.elements", "rods follow the straight edge chains of a quad net; this net has "
+                         "triangles, whose edges make no straight chains: mesh the planform as quads")
+    return [(chain, closed) for chain, closed in edge_chains(grid.n_nodes, grid.quads, grid.lines)
+            if len(chain) >= 3 or closed]
+
+
 def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | None = None):
     """The inverted hanging net as a rod gridshell, loaded by its own form-finding weight.
+
+    Every rod edge's first director is the inverted surface's normal
+    (:func:`~shellform.rods.mesh_lines.chain_directors`): a rectangular lath
+    lies flat on the shell, its depth across it.
 
     Returns
     -------
@@ -23,6 +48,7 @@ def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | Non
     network : RodNetwork
     """
     from ..mra.inversion import MIRROR
+    from ..rods.mesh_lines import chain_directors, vertex_normals
     from ..rods.network import RodNetwork
 
     net = result.net
@@ -35,15 +61,18 @@ def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | Non
     g = net.structure.gravity if net.structure.gravity is not None else np.array([0.0, 0.0, -9.81])
     s.set_gravity(g)  # the shell carries the weight the net hung under, downward
     network = RodNetwork(s)
-    for k, chain in enumerate(grid_lines(net.grid)):
-        network.add_rod(chain, section, rest, name=f"rod{k}")
+    normals = vertex_normals(xi, [net.grid.quads])
+    for k, (chain, closed) in enumerate(rod_chains(net.grid)):
+        director = chain_directors(xi, chain, closed, normals)
+        network.add_rod(chain, section, replace(rest, director=director), closed=closed, name=f"rod{k}")
     s.fix(net.supports)
     # hold the twist of every edge that touches a suspension point: a pinned
     # rod end with free twist could spin about its own axis
     support = np.zeros(s.n_nodes, dtype=bool)
     support[net.supports] = True
     for rod in network.rods:
-        touches = support[rod.nodes[:-1]] | support[rod.nodes[1:]]
+        b = np.roll(rod.nodes, -1) if rod.closed else rod.nodes[1:]
+        touches = support[rod.nodes[: len(b)]] | support[b]
         s.fix_dofs(rod.twist_dofs[touches])
     return s, network
 
@@ -159,10 +188,8 @@ def _buckle(scene: dict, out: Path, form, summary: dict, resume: bool, say) -> t
     }
     summary["converged"] = bool(summary["converged"] and path.success)
     summary["files"] = summary.get("files", []) + path_summary["files"] + ["buckling_path.xdmf", "buckling_path.h5"]
-    warnings = _buckling_warnings(path, first)
-    for w in warnings:
-        say(f"warning: {w}")
-    warnings = list(path_summary.get("warnings", [])) + warnings
+    # the warnings reach the screen and run.log with the summary's, once
+    warnings = list(path_summary.get("warnings", [])) + _buckling_warnings(path, first)
     if warnings:
         summary["warnings"] = summary.get("warnings", []) + warnings
     return summary, bool(path.success), path.message

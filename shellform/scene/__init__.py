@@ -15,8 +15,9 @@ read by meshio. The analysis (``[analysis] type``) must suit the geometry:
 geometry               analyses
 =====================  =============================================
 ``[nodes]``            ``static``, ``continuation``, ``dynamics``
-``file``               those and ``mra`` (any net of quads, triangles, lines)
-planforms              ``mra``, ``form_and_buckle`` (structured grids)
+``file``               those, ``mra`` (any net of quads, triangles, lines)
+                       and ``form_and_buckle`` (quads)
+planforms              ``mra``, ``form_and_buckle`` (quads)
 ``hemisphere``         ``indentation``
 =====================  =============================================
 

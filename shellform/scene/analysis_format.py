@@ -101,7 +101,7 @@ LENGTHS = Table(
 BUCKLING = Table(
     fill_defaults=True,
     doc="Buckling of the rod gridshell built on the found form (analysis 'form_and_buckle'): the inverted net's "
-        "grid lines become rods ([rods]), pinned at the suspension points, loaded by the net's weight times a "
+        "grid lines (an unstructured quad net's straight edge chains) become rods ([rods]), pinned at the suspension points, loaded by the net's weight times a "
         "load factor traced by arc-length continuation to the first critical point. Also read from a top-level "
         "[buckling] table (which may hold the [rods] keys E, G, radius, density and rest_shape too).",
     keys={

@@ -177,6 +177,18 @@ def check_planform(scene: dict, base_dir=None) -> None:
     st = scene["analysis"]["start_shape"]
     if st["type"] == "nurbs" and st["depth"] is None and st["control_heights"] is None:
         raise SceneError("analysis.start_shape.depth", "a 'nurbs' start needs a depth or control_heights")
+    if scene["analysis"]["type"] == "form_and_buckle":
+        _check_lath_net(scene, kind)
+
+
+def _check_lath_net(scene: dict, kind: str) -> None:
+    """The laths of form_and_buckle follow straight chains of quad edges: a net of triangles has none."""
+    why = ("the laths of form_and_buckle follow the straight edge chains of a quad net, and triangles make no "
+           "straight chains")
+    if kind == "file" and "triangle" in scene["mesh"].cells:
+        raise SceneError("geometry.file", f"{why}; this mesh has triangles: give a quad mesh")
+    if kind != "file" and scene["geometry"].get("elements") == "triangles":
+        raise SceneError("geometry.elements", f"{why}: mesh the planform as 'quads'")
 
 
 def _check_net_geometry(scene: dict, kind: str, base_dir) -> None:

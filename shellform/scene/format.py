@@ -22,7 +22,7 @@ ANALYSES = ("static", "continuation", "dynamics", "mra", "form_and_buckle", "ind
 #: analyses that suit each source of geometry (the first is the default)
 ANALYSES_OF = {
     "nodes": ("static", "continuation", "dynamics"),
-    "file": ("static", "continuation", "dynamics", "mra"),
+    "file": ("static", "continuation", "dynamics", "mra", "form_and_buckle"),
     "planform": ("mra", "form_and_buckle"),
     "hemisphere": ("indentation",),
 }

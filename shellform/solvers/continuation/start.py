@@ -62,10 +62,13 @@ def start(tr, q0, p0: float, direction: int) -> PathPoint:
         t_du, t_dp = -t_du, -t_dp
     tr.u, tr.p, tr.q = u, float(p0), q
     tr.t_du, tr.t_dp = t_du, t_dp
+    # the residual the point was converged with: accepting a state moves the rods' reference
+    # frames, and where a rod's twist is held their new parametrisation balances it to a
+    # different round-off (path-dependent, second order in the rotation since the last accepted state)
+    r = tr.system.residual(q, lam)
     tr.accept(q)
     tr.n_neg = tr.count(K, F)
     tr.step, tr.branch, tr.s = 0, 0, 0.0
-    r = tr.system.residual(q, lam)
     return tr.record(q, r, p0, st.iterations, 0.0, tr.n_neg)
 
 
