@@ -25,6 +25,11 @@ from .errors import ModelError
 from .model import Structure
 
 
+def _same_pattern(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether two Hessian patterns list the same entries in the same order."""
+    return all(x is y or np.array_equal(x, y) for x, y in zip(a, b))
+
+
 def _stable_order(key: np.ndarray, n_keys: int) -> np.ndarray:
     """The stable permutation that sorts the integers ``key`` (``0 <= key < n_keys``): a counting sort.
 
@@ -129,19 +134,56 @@ class System:
 
     # -- construction --------------------------------------------------------------
     def _pattern_triplets(self):
+        """Triplets of every effect's pattern, once per distinct pattern.
+
+        Effects whose patterns are equal (the bending and twisting of the
+        same rod hinges) share their triplets: their values are summed before
+        the one scatter. ``self._ranges[k]`` is the slice of the triplets that
+        effect ``k``'s values fill, ``self._groups`` the effects sharing each
+        slice, in the order of the triplets.
+        """
         rows, cols = [], []
-        self._offsets = [0]  # where each effect's entries start in the triplets
-        for e in self.effects:
+        self._ranges = []
+        self._groups = []
+        count = 0
+        for k, e in enumerate(self.effects):
             r, c = e.hessian_pattern()
+            shared = next((g for g in self._groups if len(r) and self._ranges[g[0]][1] - self._ranges[g[0]][0] == len(r)
+                           and _same_pattern(self.effects[g[0]].hessian_pattern(), (r, c))), None)
+            if shared is not None:
+                shared.append(k)
+                self._ranges.append(self._ranges[shared[0]])
+                continue
             rows.append(r)
             cols.append(c)
-            self._offsets.append(self._offsets[-1] + len(r))
+            self._ranges.append((count, count + len(r)))
+            self._groups.append([k])
+            count += len(r)
+        self._n_triplets = count
         # the diagonal is always in the pattern so that a regularising shift
         # never changes the structure of the matrix
         diag = np.arange(self.n_dof, dtype=np.int64)
         rows.append(diag)
         cols.append(diag)
         return np.concatenate(rows), np.concatenate(cols)
+
+    def _group_values(self, values: dict) -> np.ndarray:
+        """The values of all triplets from values by effect index (summed over effects sharing a pattern; zero
+        for effects left out)."""
+        parts = []
+        for g in self._groups:
+            present = [values[k] for k in g if k in values]
+            if not present:
+                start, end = self._ranges[g[0]]
+                parts.append(np.zeros(end - start))
+            elif len(present) == 1:
+                parts.append(present[0])
+            else:
+                total = present[0] + present[1]
+                for v in present[2:]:
+                    total += v
+                parts.append(total)
+        return np.concatenate(parts) if parts else np.zeros(0)
 
     # -- states ---------------------------------------------------------------------
     @property
@@ -209,14 +251,13 @@ class System:
         Loads are conservative and constant, so the tangent does not depend on
         the load factor.
         """
-        vals = [e.hessian_values(q) for e in self.effects]
-        vals.append(np.zeros(self.n_dof))
-        return self._full.matrix(np.concatenate(vals))
+        vals = self._group_values({k: e.hessian_values(q) for k, e in enumerate(self.effects)})
+        return self._full.matrix(np.concatenate([vals, np.zeros(self.n_dof)]))
 
     def tangent_free(self, q: np.ndarray) -> sp.csr_matrix:
         """Tangent restricted to the free DOFs (CSR), assembled directly."""
         return self._free_matrix({k: e.hessian_values(q) for k, e in enumerate(self.effects)
-                                  if self._offsets[k + 1] > self._offsets[k]})
+                                  if self._ranges[k][1] > self._ranges[k][0]})
 
     def assemble_free(self, values: dict) -> sp.csr_matrix:
         """A matrix on the pattern of :meth:`tangent_free` from some effects' Hessian-shaped values.
@@ -239,18 +280,18 @@ class System:
         """The free pattern's matrix from Hessian values by effect index (the other effects give zero)."""
         nnz = self._ff.nnz
         for k, v in values.items():
-            if v.shape != (self._offsets[k + 1] - self._offsets[k],):
+            start, end = self._ranges[k]
+            if v.shape != (end - start,):
                 raise ModelError(f"effect {self.effects[k].name!r}: {v.shape} Hessian values for "
-                                 f"{self._offsets[k + 1] - self._offsets[k]} pattern entries")
+                                 f"{end - start} pattern entries")
         if len(values) == 1:
             # the usual case (one kind of member): its values scatter as they are, without a copy
             (k, weights), = values.items()
-            slot = self._ff_slot[self._offsets[k]:self._offsets[k + 1]]
+            slot = self._ff_slot[slice(*self._ranges[k])]
         else:
             # one scatter in the order of the entries, so that every sum is added in a fixed order
-            weights = np.concatenate([values.get(k, np.zeros(self._offsets[k + 1] - self._offsets[k]))
-                                      for k in range(len(self.effects))])
-            slot = self._ff_slot[:self._offsets[-1]]
+            weights = self._group_values(values)
+            slot = self._ff_slot[:self._n_triplets]
         data = np.bincount(slot, weights=weights, minlength=nnz + 1)[:nnz]
         return sp.csr_matrix((data, self._ff.indices, self._ff.indptr), shape=self._ff.shape)
 
@@ -279,7 +320,7 @@ class System:
             raise ModelError(f"add_free_entries: the matrix ({A.shape[0]} x {A.shape[1]}, {A.nnz} entries) does not "
                              f"have the pattern of the free tangent ({n_f} x {n_f}, {self._ff.nnz} entries)")
         k = self._index(effect)
-        slots = self._ff_slot[self._offsets[k]:self._offsets[k + 1]][entries]
+        slots = self._ff_slot[slice(*self._ranges[k])][entries]
         free = slots < self._ff.nnz
         np.add.at(A.data, slots[free], np.asarray(values, dtype=float)[free])
 

@@ -83,3 +83,28 @@ def test_projection_and_stencil_expansion_are_the_dense_maps():
     gz, Hz = project_to_edges(t0.T, t1.T, l0, l1, g.T, H.transpose(1, 2, 0))
     assert np.allclose(gz.T @ STENCIL_MAP, g11, rtol=0, atol=1e-12 * np.abs(g11).max())
     assert np.allclose(stencil_hessian(Hz).transpose(2, 0, 1), H11, rtol=0, atol=1e-12 * np.abs(H11).max())
+
+
+def test_rod_stretching_values_are_the_bar_values():
+    """The component-major Hessian of the rod edges assembles to the bar effect's matrix, on all or some edges."""
+    import scipy.sparse as sp
+
+    from shellform.effects.axial import AxialBar
+
+    rng = np.random.default_rng(2)
+    s, net = network_from(random_lines(rng, (4, 7)), natural=["rest", "straight"])
+    q = s.reference_state() + 0.1 * rng.normal(size=s.n_dof)
+    stretch = net.effects()[0]
+    bar = AxialBar(stretch.n_dof, stretch.conn, stretch.EA, stretch.L)
+
+    def dense(e):
+        return sp.coo_matrix((e.hessian_values(q), e.hessian_pattern()), shape=(q.size, q.size)).toarray()
+
+    A, B = dense(stretch), dense(bar)
+    assert np.allclose(A, B, rtol=0, atol=1e-13 * np.abs(B).max())
+    members = np.array([1, 4, 5])
+    vals = stretch.hessian_values(q)[stretch.hessian_entries(members)].reshape(3, 6, 6)
+    assert np.allclose(vals, bar.hessian_values(q).reshape(-1, 6, 6)[members], rtol=0, atol=1e-13 * np.abs(B).max())
+    index = np.arange(s.n_nodes)
+    sub, sub_bar = stretch.on_members(members, index, s.n_dof), bar.on_members(members, index, s.n_dof)
+    assert np.allclose(dense(sub), dense(sub_bar), rtol=0, atol=1e-13 * np.abs(B).max())

@@ -99,19 +99,22 @@ class RodBending(HingeEffect):
 
     def _local(self, q, order):
         t0, t1, l0, l1, theta = self._geometry(q)
-        res = binormal_energy_derivatives(t0, t1, l0, l1, order)
+        k = self.k
+        n = len(k)
+        H = None
+        if order == 2:
+            # the material frames enter only through the terms of curved and anisotropic hinges
+            H = np.empty((8, 8, n))
+            H[6:] = 0.0
+            H[:6, 6:] = 0.0
+        res = binormal_energy_derivatives(t0, t1, l0, l1, order, k, None if H is None else H[:6, :6])
         e = res[0] + self._const
         if order == 0:
             if self.curved.size or self.aniso.size:
                 self._add_frame_energies(t0, t1, theta, e)
-            return (self.k * e,)
-        n = len(e)
+            return (k * e,)
         g = np.zeros((8, n))
         g[:6] = res[1]
-        H = None
-        if order == 2:
-            H = np.zeros((8, 8, n))
-            H[:6, :6] = res[2]
         for sub, terms in ((self.curved, self._curvature_terms), (self.aniso, self._anisotropy_terms)):
             if sub.size:
                 T0, T1 = t0[:, sub].T, t1[:, sub].T
@@ -119,13 +122,9 @@ class RodBending(HingeEffect):
                 gz, Hz = project_to_edges(t0[:, sub], t1[:, sub], l0[sub], l1[sub], gs.T,
                                           None if H is None else Hs.transpose(1, 2, 0))
                 e[sub] += es
-                g[:, sub] += gz
+                g[:, sub] += k[sub] * gz
                 if H is not None:
-                    H[:, :, sub] += Hz
-        k = self.k
-        g *= k
-        if H is not None:
-            H *= k
+                    H[:, :, sub] += k[sub] * Hz
         return k * e, g, H
 
     def _add_frame_energies(self, t0, t1, theta, e) -> None:

@@ -286,7 +286,7 @@ def material_curvature_term(t0, t1, binormal: BinormalJacobian, edge, frame, ome
 # -- the isotropic bending term |kb|^2 over the edge vectors -------------------------------
 
 
-def binormal_energy_derivatives(t0, t1, l0, l1, order=2):
+def binormal_energy_derivatives(t0, t1, l0, l1, order=2, scale=None, out=None):
     """``|kb|^2`` and its gradient (6, h) and Hessian (6, 6, h) over ``(e^0, e^1)``.
 
     With ``chi = 1 + t0 . t1``, ``w = t0 + t1`` and ``S_a = [t_a]_x``, the
@@ -304,6 +304,10 @@ def binormal_energy_derivatives(t0, t1, l0, l1, order=2):
     l0, l1 : (h,)
         Their lengths.
     order : {0, 1, 2}
+    scale : (h,), optional
+        Factor of the gradient and Hessian of each hinge (the energy is not scaled).
+    out : (6, 6, h), optional
+        Where to write the Hessian.
 
     Returns
     -------
@@ -315,15 +319,17 @@ def binormal_energy_derivatives(t0, t1, l0, l1, order=2):
     kk = _dot(kb, kb)
     if order == 0:
         return (kk,)
+    s2 = 2.0 if scale is None else 2.0 * scale
     i0, i1 = 1.0 / l0, 1.0 / l1
     a0 = 2.0 * _cross(t1, kb)  # -2 S_1^T kb
     a1 = 2.0 * _cross(kb, t0)  # 2 S_0^T kb
     w = t0 + t1
+    kw = kk * w
     gh = np.empty((6,) + kk.shape)  # K^T kb
-    np.multiply(a0 - kk * w, ichi * i0, out=gh[:3])
-    np.multiply(a1 - kk * w, ichi * i1, out=gh[3:])
+    np.multiply(a0 - kw, ichi * i0, out=gh[:3])
+    np.multiply(a1 - kw, ichi * i1, out=gh[3:])
     if order == 1:
-        return kk, 2.0 * gh
+        return kk, s2 * gh
     v = np.empty_like(gh)  # (w / l0, w / l1)
     np.multiply(w, i0, out=v[:3])
     np.multiply(w, i1, out=v[3:])
@@ -332,28 +338,27 @@ def binormal_energy_derivatives(t0, t1, l0, l1, order=2):
     nu[3:] += (t0 - (chi - 1.0) * t1) * i1
     # K^T K = (L^T L - chi (gh v^T + v gh^T) - kk v v^T) / chi^2 with L = [-2 S_1 / l0, 2 S_0 / l1];
     # the binormal's curvature adds -(gh g_chi^T + g_chi gh^T) / chi and the blocks below
-    U = _outer(-ichi * gh, nu)
-    U -= _outer((0.5 * kk * ichi * ichi) * v, v)
     ichi2 = ichi * ichi
+    U = _outer((-s2 * ichi) * gh, nu)
+    U -= _outer((0.5 * s2 * kk * ichi2) * v, v)
     # diagonal blocks: L^T L / 2 = 2 (I - t_b t_b^T) / l_a^2, and the normalisation terms (g . t = kk / chi)
     for a, (ta, tb, ia, aa) in enumerate(((t0, t1, i0, a0), (t1, t0, i1, a1))):
-        s = slice(3 * a, 3 * a + 3)
-        Uaa = U[s, s]
-        ia2 = ia * ia
+        sl = slice(3 * a, 3 * a + 3)
+        Uaa = U[sl, sl]
+        ia2 = s2 * ia * ia
         Uaa -= _outer((2.0 * ichi2 * ia2) * tb, tb)
         # W_a with the tangent-space gradient (aa - kk t_b) / chi of kb . kb / 2
         Uaa -= _outer((ichi * ia2) * ta, aa - kk * tb - (1.5 * kk) * ta)
         _add_diagonal(Uaa, (2.0 * ichi2 - 0.5 * kk * ichi) * ia2)
     # off-diagonal block: 4 (t0 t1^T - (t0.t1) I) / (chi^2 l0 l1) - P0 (2 [kb]_x + kk I) P1 / (chi l0 l1)
-    alpha = ichi * i0 * i1
+    alpha = s2 * ichi * i0 * i1
     U01 = U[:3, 3:]
     U01 += _outer(alpha * t0, kk * t0 + (4.0 * ichi + kk) * t1 - a1)
     U01 += _outer(alpha * (kk * t1 - a0), t1)
     _add_skew(U01, -2.0 * alpha * kb)
     _add_diagonal(U01, -alpha * (4.0 * (chi - 1.0) * ichi + kk))
-    H = U + U.swapaxes(0, 1)
-    H *= 2.0
-    return kk, 2.0 * gh, H
+    H = np.add(U, U.swapaxes(0, 1), out=out)
+    return kk, s2 * gh, H
 
 
 # -- the reference twist over the edge vectors ----------------------------------------------
@@ -377,31 +382,37 @@ def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2) -> TwistTerms:
     linear (second) in the tangents. For ``order == 2`` the returned ``parts``
     feed :func:`reference_twist_hessian`.
     """
-    x01 = _cross(t0, t1)
-    N1 = _dot(s0, x01)
+    gN1 = np.empty((6,) + l0.shape)
+    gN1[:3] = _cross(t1, s0)
+    gN1[3:] = _cross(s0, t0)
+    N1 = _dot(t0, gN1[:3])  # s0 . (t0 x t1)
     D1 = 1.0 + _dot(t0, t1) + _dot(s0, t0 + t1)
-    gN1 = np.concatenate([_cross(t1, s0), _cross(s0, t0)])
-    gD1 = np.concatenate([s0 + t1, s0 + t0])
+    gD1 = np.empty_like(gN1)
+    np.add(s0, t1, out=gD1[:3])
+    np.add(s0, t0, out=gD1[3:])
     R1 = N1 * N1 + D1 * D1
-    G1 = D1 * gN1 - N1 * gD1
-    N2 = _dot(s0, _cross(t1, s1))
-    D2 = 1.0 + _dot(s0 + s1, t1) + _dot(s1, s0)
+    G1 = D1 * gN1
+    G1 -= N1 * gD1
     gN2 = _cross(s1, s0)
+    N2 = _dot(t1, gN2)  # s0 . (t1 x s1)
     gD2 = s0 + s1
+    D2 = 1.0 + _dot(gD2, t1) + _dot(s1, s0)
     R2 = N2 * N2 + D2 * D2
     G2 = D2 * gN2 - N2 * gD2
     beta = -2.0 * (np.arctan2(N1, D1) + np.arctan2(N2, D2))
     gt = (-2.0 / R1) * G1
     gt[3:] -= (2.0 / R2) * G2
     i0, i1 = 1.0 / l0, 1.0 / l1
-    g = np.concatenate([_project(gt[:3], t0, i0), _project(gt[3:], t1, i1)])
+    g = np.empty_like(gt)
+    g[:3] = _project(gt[:3], t0, i0)
+    g[3:] = _project(gt[3:], t1, i1)
     parts = None
     if order == 2:
         parts = (N1, D1, R1, G1, gN1, gD1, N2, D2, R2, G2, gN2, gD2, i0, i1)
     return TwistTerms(beta, g, gt, parts)
 
 
-def reference_twist_hessian(t0, t1, s0, terms: TwistTerms, c, k) -> np.ndarray:
+def reference_twist_hessian(t0, t1, s0, terms: TwistTerms, c, k, out=None) -> np.ndarray:
     """``c Hess(beta) + 2 k grad(beta) grad(beta)^T`` over ``(e^0, e^1)``, shape (6, 6, h).
 
     The Hessian of ``2 atan2(N, D)`` over the tangents is
@@ -414,15 +425,19 @@ def reference_twist_hessian(t0, t1, s0, terms: TwistTerms, c, k) -> np.ndarray:
     N1, D1, R1, G1, gN1, gD1, N2, D2, R2, G2, gN2, gD2, i0, i1 = terms.parts
     g = terms.grad
     chi1 = _dot(t0, t1)
-
-    def proj6(v):
-        return np.concatenate([_project(v[:3], t0, i0), _project(v[3:], t1, i1)])
-
-    gR1 = 2.0 * (N1 * gN1 + D1 * gD1)
-    # U + U^T is the result
+    # the rank-one terms, with their vectors carried to the edges
+    a = np.empty((6,) + i0.shape)
+    b = np.empty_like(a)
+    cR = c / (R1 * R1)
+    a[:3] = _project(G1[:3], t0, cR * i0)
+    a[3:] = _project(G1[3:], t1, cR * i1)
+    gR1 = N1 * gN1
+    gR1 += D1 * gD1
+    b[:3] = _project(gR1[:3], t0, 2.0 * i0)
+    b[3:] = _project(gR1[3:], t1, 2.0 * i1)
     U = _outer(k * g, g)
-    U += _outer((c / (R1 * R1)) * proj6(G1), proj6(gR1))
-    U[3:, 3:] += _outer((c / (R2 * R2)) * _project(G2, t1, i1), _project(2.0 * (N2 * gN2 + D2 * gD2), t1, i1))
+    U += _outer(a, b)
+    U[3:, 3:] += _outer(_project(G2, t1, (c / (R2 * R2)) * i1), _project(N2 * gN2 + D2 * gD2, t1, 2.0 * i1))
     # off-diagonal block of the first triangle: 2 c P0 (D1 [s0]_x + N1 I) P1 / (R1 l0 l1)
     alpha = 2.0 * c * i0 * i1 / R1
     U01 = U[:3, 3:]
@@ -436,7 +451,7 @@ def reference_twist_hessian(t0, t1, s0, terms: TwistTerms, c, k) -> np.ndarray:
     gt = terms.grad_t
     _subtract_curvature(U[:3, :3], t0, gt[:3], c * i0 * i0)
     _subtract_curvature(U[3:, 3:], t1, gt[3:], c * i1 * i1)
-    return U + U.swapaxes(0, 1)
+    return np.add(U, U.swapaxes(0, 1), out=out)
 
 
 # -- from the edge vectors to the stencil -----------------------------------------------------

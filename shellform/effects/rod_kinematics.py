@@ -250,9 +250,9 @@ class ReferenceFrames:
             return cache[1]
         e = edge_vectors(x, self.edges)
         length = np.linalg.norm(e, axis=1)
-        t = (e / length[:, None]).T
+        t = np.ascontiguousarray((e / length[:, None]).T)
         h0, h1 = self.hinges[:, 0], self.hinges[:, 1]
-        result = (t[:, h0], t[:, h1], length[h0], length[h1])
+        result = (np.take(t, h0, axis=1), np.take(t, h1, axis=1), length[h0], length[h1])
         for a in result:
             a.flags.writeable = False
         self._hinge_cache = (x.copy(), result)

@@ -2,11 +2,15 @@
 
 ``E_s = 1/2 sum_j EA (eps^j)^2 |e_bar^j|`` with ``eps^j = |e^j| / |e_bar^j| - 1``:
 the same law as an elastic bar on every rod edge, so the element formulas are
-those of :class:`~shellform.effects.axial.AxialBar`; this class only names the
-effect and its output for rods.
+those of :class:`~shellform.effects.axial.AxialBar`; this class names the
+effect and its output for rods, and evaluates the Hessian values on
+component-major arrays (edge index last, pattern entry-major ``(6, 6, m)``),
+the layout of the rod hinge effects.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from .axial import AxialBar
 
@@ -28,3 +32,41 @@ class RodStretching(AxialBar):
 
     name = "rod_stretch"
     member_kind = "rod"
+
+    def __init__(self, n_dof: int, connectivity, EA, rest_length):
+        super().__init__(n_dof, connectivity, EA, rest_length)
+        self._component_major()
+
+    def _component_major(self) -> None:
+        self._dofs_t = np.ascontiguousarray(self.dofs.T)  # (6, m)
+        k, m = self._dofs_t.shape
+        self._pattern = (np.broadcast_to(self._dofs_t[:, None, :], (k, k, m)).ravel(),
+                         np.broadcast_to(self._dofs_t[None, :, :], (k, k, m)).ravel())
+
+    def on_members(self, members, node_index, n_dof):
+        out = super().on_members(members, node_index, n_dof)
+        out._component_major()
+        return out
+
+    def hessian_entries(self, members):
+        """Indices into :meth:`hessian_pattern` of the entries of ``members`` (36 each, in block order)."""
+        m = len(self.conn)
+        return (np.arange(36)[None, :] * m + np.asarray(members, dtype=np.int64)[:, None]).ravel()
+
+    def hessian_values(self, q):
+        """``[[K, -K], [-K, K]]`` with ``K = (EA / L - N / l) n n^T + (N / l) I`` (see :mod:`~shellform.effects.axial`)."""
+        x = q[self._dofs_t]
+        d = x[3:] - x[:3]
+        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        N, k = self._force(length)
+        s = N / length
+        n = d / length
+        H = np.empty((6, 6, length.size))
+        K = H[:3, :3]
+        np.multiply(((k - s) * n)[:, None], n[None], out=K)
+        for i in range(3):
+            K[i, i] += s
+        np.negative(K, out=H[:3, 3:])
+        H[3:, :3] = H[:3, 3:]
+        H[3:, 3:] = K
+        return H.ravel()

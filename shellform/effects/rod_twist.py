@@ -51,8 +51,8 @@ class RodTwisting(HingeEffect):
         if order == 0:
             return (self.k * (self.twist(q) - self.tau_bar) ** 2,)
         t0, t1, l0, l1, theta = self._geometry(q)
-        stored = self.frames.tangent.T
-        s0, s1 = stored[:, self.hinge_edges[:, 0]], stored[:, self.hinge_edges[:, 1]]
+        stored = np.ascontiguousarray(self.frames.tangent.T)
+        s0, s1 = (np.take(stored, self.hinge_edges[:, j], axis=1) for j in (0, 1))
         terms = reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order)
         dtau = theta[1] - theta[0] + self.frames.twist + terms.beta - self.tau_bar
         k2 = 2.0 * self.k
@@ -66,7 +66,7 @@ class RodTwisting(HingeEffect):
         if order == 2:
             # tau's gradient over z is (grad beta, -1, 1)
             H = np.empty((8, 8, n))
-            H[:6, :6] = reference_twist_hessian(t0, t1, s0, terms, c, self.k)
+            reference_twist_hessian(t0, t1, s0, terms, c, self.k, out=H[:6, :6])
             np.multiply(-k2, terms.grad, out=H[:6, 6])
             np.multiply(k2, terms.grad, out=H[:6, 7])
             H[6:, :6] = H[:6, 6:].swapaxes(0, 1)
