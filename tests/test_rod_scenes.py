@@ -15,7 +15,8 @@ from shellform.rods.mesh_lines import edge_chains
 from shellform.scene import build_model, load_scene, parse_scene
 from shellform.solvers import solve_static
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "scenes"
 GRIDSHELL = SCENES / "rod_gridshell.toml"
 
 
@@ -124,9 +125,9 @@ def test_example_gridshell_scene_runs_static_and_continuation_and_reads_back(tmp
     for name in ("max_stress", "bending_moment_1", "bending_moment_2", "torque", "axial_force"):
         assert np.all(np.isfinite(mesh.cell_data[name][0])), name
 
-    (tmp_path / "static.toml").write_text(GRIDSHELL.read_text().split("[analysis]")[0]
-                                          + '[analysis]\ntype = "static"\n')
-    (tmp_path / "rod_gridshell.obj").write_bytes((SCENES / "rod_gridshell.obj").read_bytes())
+    (tmp_path / "static.toml").write_text(GRIDSHELL.read_text().split("[analysis]")[0].replace(
+        "../meshes/rod_gridshell.obj", "rod_gridshell.obj") + '[analysis]\ntype = "static"\n')
+    (tmp_path / "rod_gridshell.obj").write_bytes((ROOT / "meshes" / "rod_gridshell.obj").read_bytes())
     assert main(["run", str(tmp_path / "static.toml"), "--out", str(tmp_path / "static"), "--quiet"]) == 0
     summary = json.loads((tmp_path / "static" / "summary.json").read_text())
     assert summary["converged"] is True

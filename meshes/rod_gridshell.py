@@ -1,11 +1,17 @@
-"""Writes rod_gridshell.obj: the quad mesh of the rod gridshell scene (rod_gridshell.toml).
+"""Writes rod_gridshell.obj: the quad mesh of the rod gridshell scene (scenes/rod_gridshell.toml).
 
 A 4 m x 4 m square plan divided into 8 x 8 quads, lifted on z = rise cos(pi x / L) cos(pi y / L)
-(zero on the edges, 0.8 m at the centre). Run from this folder: ``python rod_gridshell_mesh.py``.
+(zero on the edges, 0.8 m at the centre).
+
+Run:  python meshes/rod_gridshell.py
 """
+
+from pathlib import Path
 
 import meshio
 import numpy as np
+
+HERE = Path(__file__).resolve().parent
 
 L, N, RISE = 4.0, 8, 0.8
 
@@ -21,4 +27,4 @@ def gridshell_mesh(length: float = L, n: int = N, rise: float = RISE) -> meshio.
 
 
 if __name__ == "__main__":
-    meshio.write("rod_gridshell.obj", gridshell_mesh())
+    meshio.write(HERE / "rod_gridshell.obj", gridshell_mesh())
