@@ -108,3 +108,36 @@ def test_rod_stretching_values_are_the_bar_values():
     index = np.arange(s.n_nodes)
     sub, sub_bar = stretch.on_members(members, index, s.n_dof), bar.on_members(members, index, s.n_dof)
     assert np.allclose(dense(sub), dense(sub_bar), rtol=0, atol=1e-13 * np.abs(B).max())
+
+
+def test_shared_patterns_assemble_to_the_sum_of_the_effects():
+    """Bending and twisting share one set of triplets in the System; every assembly path sums the effects."""
+    import scipy.sparse as sp
+
+    from shellform.rods import build_rod_system
+
+    rng = np.random.default_rng(4)
+    s, net = network_from(random_lines(rng, (5, 8)), natural=["rest", "straight"], twist=[0.2, 0.0])
+    net.clamp(0, "start")
+    net.clamp(1, "start")
+    system = build_rod_system(net)
+    bend, twist = [e for e in system.effects if isinstance(e, HingeEffect)]
+    kb, kt = system.effects.index(bend), system.effects.index(twist)
+    assert system._ranges[kb] == system._ranges[kt]
+    q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
+
+    def dense(e):
+        r, c = e.hessian_pattern()
+        return sp.coo_matrix((e.hessian_values(q), (r, c)), shape=(q.size, q.size)).toarray()
+
+    total = sum(dense(e) for e in system.effects)
+    K = system.tangent(q).toarray()
+    assert np.allclose(K, total, rtol=0, atol=1e-13 * np.abs(total).max())
+    free = system.free
+    assert np.allclose(system.tangent_free(q).toarray(), total[np.ix_(free, free)], rtol=0,
+                       atol=1e-13 * np.abs(total).max())
+    only_twist = system.assemble_free({twist: twist.hessian_values(q)}).toarray()
+    assert np.allclose(only_twist, dense(twist)[np.ix_(free, free)], rtol=0, atol=1e-13 * np.abs(total).max())
+    parts = system.assemble_free({bend: bend.hessian_values(q), twist: twist.hessian_values(q)}).toarray()
+    both = (dense(bend) + dense(twist))[np.ix_(free, free)]
+    assert np.allclose(parts, both, rtol=0, atol=1e-13 * np.abs(total).max())
