@@ -220,6 +220,24 @@ def test_the_scene_sets_the_tolerance_of_the_critical_load(tmp_path, critical_rt
     assert limit["located"] and abs(limit["load"] - p_cr) <= critical_rtol * p_cr
 
 
+@pytest.mark.parametrize("load, warned", [(-1.0, False), (-100.0, True)])
+def test_a_structure_buckling_below_its_loads_is_flagged(tmp_path, capsys, load, warned):
+    # the truss snaps at 29.6 N: under 100 N the first limit point is at load factor 0.296
+    scene = tmp_path / "path.toml"
+    scene.write_text(CONTINUATION.replace("force = [0.0, 0.0, -1.0]", f"force = [0.0, 0.0, {load!r}]")
+                     .replace("parameter_max = 40.0", f"parameter_max = {40.0 / abs(load)!r}"))
+    assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    notes = [w for w in summary.get("warnings", []) if "less than the loads themselves" in w]
+    assert len(notes) == warned
+    if warned:
+        alpha = np.arctan(0.2)
+        p_cr = 2 * 1.0e4 * np.sin(np.arccos(np.cos(alpha) ** (1 / 3))) ** 3
+        assert f"load factor {p_cr / 100:.4g} < 1" in notes[0]
+        assert capsys.readouterr().err.count("less than the loads themselves") == 1
+        assert "less than the loads themselves" in (tmp_path / "out" / "run.log").read_text()
+
+
 def test_interrupted_continuation_resumes_from_its_checkpoint(tmp_path):
     from shellform.io.table import read_csv
 

@@ -137,3 +137,17 @@ def test_example_gridshell_scene_runs_static_and_continuation_and_reads_back(tmp
     weight = 9.81 * build_model(scene).structure.nodal_mass().sum()
     assert summary["reaction_sum"][2] == pytest.approx(weight, rel=1e-8)
     assert np.all(np.isfinite(stress)) and 0 < stress.max() < 5.0e7  # below the strength of timber
+
+
+def test_the_form_found_gridshell_mesh_is_what_its_generator_writes():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("form_found_gridshell", ROOT / "meshes" / "form_found_gridshell.py")
+    generator = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(generator)
+    made = generator.form_found_gridshell()
+    stored = meshio.read(ROOT / "meshes" / "form_found_gridshell.obj")
+    assert np.allclose(made.points, stored.points, rtol=0, atol=1e-9)
+    assert np.array_equal(made.cells[0].data, stored.cells[0].data)
+    # a shell rising from its supports on the plane z = 0
+    assert stored.points[:, 2].min() == pytest.approx(0.0, abs=1e-12) and stored.points[:, 2].max() > 0.7

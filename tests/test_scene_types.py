@@ -44,7 +44,7 @@ def test_every_example_is_covered():
 
 
 EXAMPLES = ["lattice_dome", "lattice_dome_imperfect", "chain_dynamics", "hemisphere_indentation", "barrel_vault",
-            "l_shape", "l_shape_gridshell", "courtyard", "cable_net", "rod_gridshell"]
+            "l_shape", "l_shape_gridshell", "courtyard", "cable_net", "rod_gridshell", "form_found_gridshell"]
 
 
 @pytest.mark.parametrize("name", EXAMPLES)

@@ -228,4 +228,16 @@ def trace_model(scene: dict, model, out: Path, progress: Progress, resume: bool 
     summary["xdmf_time"] = time_name
     if model.imperfection:
         summary["imperfection"] = model.imperfection
+    weak = _below_the_loads(res, control)
+    if weak:
+        summary["warnings"] = summary.get("warnings", []) + [weak]
     return summary
+
+
+def _below_the_loads(res, control: str) -> str | None:
+    """Under load control, a first critical point below load factor 1: the structure does not carry its loads."""
+    first = res.events[0] if res.events else None
+    if control != "load" or first is None or not 0.0 <= first.lam < 1.0:
+        return None
+    return (f"the structure loses stability under {first.lam:.3g} times its loads, less than the loads "
+            f"themselves ({first.kind} point at load factor {first.lam:.4g} < 1)")
