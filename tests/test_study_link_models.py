@@ -53,3 +53,12 @@ def test_the_perfect_models_bifurcate_at_the_exact_load():
         assert record["event"] == "bifurcation"
         # a bifurcation is located by bisection on the count of negative eigenvalues: to about 1e-6
         assert record["lam_cr"] == pytest.approx(critical_load(kind), rel=2e-6)
+
+
+def test_koiter_classes_of_the_link_models_from_their_secondary_paths():
+    from shellform.studies.post_buckling import post_buckling
+
+    symmetric = post_buckling(parse_scene(tomllib.loads(link_scene("symmetric"))), 45.0)
+    asymmetric = post_buckling(parse_scene(tomllib.loads(link_scene("asymmetric"))), 45.0)
+    assert symmetric == {"+": "falls", "-": "falls", "class": "unstable-symmetric"}
+    assert asymmetric["class"] == "asymmetric" and {asymmetric["+"], asymmetric["-"]} == {"rises", "falls"}

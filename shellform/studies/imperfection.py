@@ -38,6 +38,7 @@ from ..fingerprint import digest
 from ..io.checkpoint import load_checkpoint, save_checkpoint
 from ..io.files import output_folder, output_lock
 from ..io.table import write_csv
+from .post_buckling import post_buckling
 from .runner import Runner
 from . import shapes as sh
 from .sample import critical_record, imperfect_model, run_sample, trace_to_instability
@@ -86,6 +87,8 @@ class Perfect:
     modes: np.ndarray
     eigenvalues: np.ndarray
     q: np.ndarray
+    #: at a bifurcation, the way of its secondary paths and Koiter's class (:mod:`.post_buckling`)
+    post_buckling: dict = field(default_factory=dict)
 
 
 def _died(why: str) -> dict:
@@ -106,7 +109,7 @@ def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, 
     if saved is not None and str(saved.get("key")) == key:
         progress(f"perfect structure: from {out / 'perfect.npz'}")
         return Perfect(float(saved["lam_cr"]), str(saved["kind"]), float(saved["reference_length"]),
-                       saved["modes"], saved["eigenvalues"], saved["q"])
+                       saved["modes"], saved["eigenvalues"], saved["q"], json.loads(str(saved["post_buckling"])))
     t0 = time.perf_counter()
     res = trace_to_instability(scene, model, settings.max_step_angle)
     record = critical_record(res)
@@ -121,9 +124,12 @@ def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, 
     length = sh.reference_length(model.structure, settings.relative_to)
     values, modes = (sh.mode_shapes(model.system, event.q, k) if k else
                      (np.zeros(0), np.zeros((0, model.structure.n_nodes, 3))))
-    progress(f"perfect structure: {event.kind} point at load factor {event.lam:.6g} "
-             f"({time.perf_counter() - t0:.2f} s); reference length ({settings.relative_to}) {length:.6g} m")
-    perfect = Perfect(float(event.lam), event.kind, length, modes, values, event.q)
+    after = post_buckling(scene, settings.max_step_angle) if event.kind == "bifurcation" else {}
+    progress(f"perfect structure: {event.kind} point at load factor {event.lam:.6g}"
+             + (f", {after['class']} (secondary path {after['+']} on the + side, {after['-']} on the - side)"
+                if after else "")
+             + f" ({time.perf_counter() - t0:.2f} s); reference length ({settings.relative_to}) {length:.6g} m")
+    perfect = Perfect(float(event.lam), event.kind, length, modes, values, event.q, after)
     n_dof = model.structure.n_dof
     files = []
     for i, shape in enumerate(modes):
@@ -131,8 +137,10 @@ def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, 
         full[: shape.size] = shape.ravel()
         files.append(write_mode(out / f"mode_{i + 1}.vtu", model.system, event.q, full, event.lam).name)
     save_checkpoint(out / "perfect.npz", key=key, lam_cr=perfect.lam_cr, kind=perfect.kind,
-                    reference_length=length, modes=modes, eigenvalues=values, q=event.q)
-    write_json(out / "perfect.json", {"lam_cr": perfect.lam_cr, "kind": perfect.kind, "steps": res.steps,
+                    reference_length=length, modes=modes, eigenvalues=values, q=event.q,
+                    post_buckling=json.dumps(after))
+    write_json(out / "perfect.json", {"lam_cr": perfect.lam_cr, "kind": perfect.kind, "post_buckling": after,
+                                      "steps": res.steps,
                                       "reference_length_m": length, "relative_to": settings.relative_to,
                                       "mode_eigenvalues_N_per_m": values.tolist(), "mode_files": files})
     return perfect
@@ -272,11 +280,11 @@ def summarise(rows: list[dict], settings: StudySettings, perfect: Perfect, scene
     summary = {
         "analysis": "imperfection_study", "title": scene["title"], "settings": _settings_record(settings),
         "amplitudes": list(settings.amplitudes), "fractile": settings.fractile, "confidence": settings.confidence,
-        "perfect": {"lam_cr": perfect.lam_cr, "kind": perfect.kind,
+        "perfect": {"lam_cr": perfect.lam_cr, "kind": perfect.kind, "post_buckling": perfect.post_buckling,
                     "mode_eigenvalues_N_per_m": perfect.eigenvalues.tolist()},
         "reference_length_m": perfect.reference_length, "samples": len(rows), "finished": len(finished),
         "failed": len(rows) - len(finished), "stable_over_range": sum(r["lam_cr"] is None for r in finished),
-        "warnings": _jumps(finished),
+        "warnings": _jumps(finished, perfect.post_buckling),
         "units": {"lam_cr": "-", "knockdown": "-", "amplitude": "multiple of the reference length",
                   "reference_length_m": "m", "wall_time_s": "s"},
     }
@@ -306,14 +314,21 @@ def summarise(rows: list[dict], settings: StudySettings, perfect: Perfect, scene
     return summary
 
 
-def _jumps(rows: list[dict]) -> list[str]:
-    """A bifurcation above the perfect structure's critical load: the path may have jumped to another branch."""
+def _jumps(rows: list[dict], after: dict) -> list[str]:
+    """A bifurcation above the perfect structure's critical load where nothing explains it: a jump to another branch?
+
+    Above a stable or asymmetric bifurcation (a secondary path that rises)
+    imperfect structures are expected to lose stability later than the perfect one.
+    """
+    if "rises" in (after.get("+"), after.get("-")):
+        return []
     jumped = [r["sample"] for r in rows if r["event"] == "bifurcation" and (r["knockdown"] or 0.0) > 1.0 + 1e-6]
     if not jumped:
         return []
     return [f"{len(jumped)} sample(s) lost stability at a bifurcation above the perfect structure's critical load "
-            f"({', '.join(jumped[:5])}{', ...' if len(jumped) > 5 else ''}): their paths may have jumped to another "
-            "branch; a smaller analysis.continuation.initial_increment keeps them on theirs"]
+            f"({', '.join(jumped[:5])}{', ...' if len(jumped) > 5 else ''}), although no secondary path of the "
+            "perfect structure rises: their paths may have jumped to another branch; a smaller "
+            "analysis.continuation.initial_increment keeps them on theirs"]
 
 
 def _figures(out: Path, summary: dict, rows: list[dict], settings: StudySettings, perfect: Perfect, scene: dict,

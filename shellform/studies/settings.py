@@ -63,7 +63,7 @@ def _amplitudes(study: dict) -> tuple[float, ...]:
 def study_settings(scene: dict) -> StudySettings:
     """The study a checked scene asks for; raises :class:`SceneError` naming the key that does not fit.
 
-    The scene must trace a load-controlled continuation of a bar/rope
+    The scene must trace a load-controlled continuation of a bar, rope or rod
     structure without an ``[imperfection]`` of its own (the study sets one
     per sample). A scene without ``[study]`` gets the defaults, which need
     amplitudes, so it is refused with the key to add.
