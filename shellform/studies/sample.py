@@ -16,17 +16,22 @@ import numpy as np
 
 
 def imperfect_model(scene: dict, delta: np.ndarray | None):
-    """The scene's Structure and System with its stress-free nodes moved by ``delta`` (n_nodes, 3)."""
+    """The scene's Structure and System with its stress-free nodes moved by ``delta`` (n_nodes, 3).
+
+    A scene with rods gets its rod network on the moved nodes (copies of
+    penalty-joint nodes follow theirs): its imperfect geometry is where the
+    rods are stress free, or (``rest_shape = "straight"``) what they are bent into.
+    """
     from ..scene.system import scene_system
     from ..scene.build import Model
-    from ..scene.structure import build_structure, reference_nodes
+    from ..scene.structure import build_structure_and_rods, reference_nodes
 
     nodes = reference_nodes(scene)
     if delta is not None:
-        nodes = nodes + delta
-    structure = build_structure(scene, nodes)
+        nodes = nodes + delta[: len(nodes)]
+    structure, network = build_structure_and_rods(scene, nodes)
     note = {} if delta is None else {"type": "study", "max_node_movement_m": float(np.linalg.norm(delta, axis=1).max())}
-    return Model(structure, scene_system(scene, structure), note)
+    return Model(structure, scene_system(scene, structure, network), note, network)
 
 
 def trace_to_instability(scene: dict, model, max_step_angle: float, store_states: bool = False):
