@@ -174,12 +174,12 @@ def main():
     if "tangent" in args.part:
         head = ["n", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "tangent", "cholesky", "ldl",
                 "ratio"]
-        print(" ".join(f"{h:>11}" for h in head) + "   (times in s: Hessian values per effect; tangent = free tangent;"
+        print(" ".join(f"{h:>11}" for h in head) + "   (times in ms: Hessian values per effect; tangent = free tangent;"
               " numeric refactorisation; ratio = tangent / Cholesky refactorisation)")
         for n in args.hemisphere_n:
             r = hemisphere_tangent(n, args.repeat)
-            print(" ".join(f"{r[h]:11d}" if isinstance(r[h], (int, np.integer)) else f"{r[h]:11.4f}" for h in head),
-                  flush=True)
+            print(" ".join(f"{r[h]:11d}" if isinstance(r[h], (int, np.integer)) else
+                           f"{r[h]:11.3f}" if h == "ratio" else f"{1e3 * r[h]:11.3f}" for h in head), flush=True)
     if "newton" in args.part:
         print("static Newton, straight line search (projection off) against the stretch projection (on)")
         cases = [(newton_cantilever, a) for a in args.axial_ratios] + [(newton_hemisphere, n) for n in args.hemisphere_n]
