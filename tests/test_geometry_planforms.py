@@ -144,6 +144,39 @@ def test_loops_gmsh_cannot_mesh_are_refused_before_meshing(boundary, holes, mess
         polygon_planform(boundary, holes, edge_length=1.0)
 
 
+def _shifted(curves, dx, scale=1.0):
+    return [BoundaryCurve(c.control_points * scale + np.array([dx, 0.0, 0.0]), c.degree, c.weights) for c in curves]
+
+
+@pytest.mark.parametrize("loops, message", [
+    # a hole of radius 0.3 centred 0.8 from the centre of the unit circle: it crosses the boundary
+    (lambda: [_circle_arcs(), _shifted(_circle_arcs(), 0.8, 0.3)], "hole 1: not inside"),
+    (lambda: [_circle_arcs(), _shifted(_circle_arcs(), -0.3, 0.4), _shifted(_circle_arcs(), 0.3, 0.4)],
+     "hole 2 and planform hole 1 overlap"),
+    # one cubic curve whose control polygon makes it loop over itself, closed by a line
+    (lambda: [[BoundaryCurve(np.array([[0, 0, 0], [3, 2, 0], [-1, 2, 0], [2, 0, 0.0]]), 3),
+               BoundaryCurve(np.array([[2, 0, 0], [0, 0, 0.0]]), 1)]], "curve 0 meets curve 0"),
+    (lambda: [[BoundaryCurve(c.control_points, 2, np.array([1.0, -0.5, 1.0])) for c in _circle_arcs()]],
+     "weights must be 3 positive numbers"),
+])
+def test_curve_loops_gmsh_cannot_mesh_are_refused_before_meshing(loops, message):
+    with pytest.raises(ModelError, match=message):
+        curve_planform(loops(), edge_length=0.1)
+
+
+def test_a_circular_courtyard_of_curves_is_meshed():
+    g = curve_planform([_circle_arcs(), _shifted(_circle_arcs(), 0.2, 0.4)], edge_length=0.1)
+    r = np.linalg.norm(g.nodes[g.group("hole_1"), :2] - [0.2, 0.0], axis=1)
+    assert np.allclose(r, 0.4, atol=1e-12)
+
+
+def test_a_corner_in_line_with_a_side_it_does_not_touch_is_no_crossing():
+    # the first corner lies on the line of side 4 (x = 0), beyond its end, and side 0's box overlaps side 4's
+    boundary = [(0, 0, 0), (1, -1.5, 0), (2, -3, 0), (-2, -3, 0), (0, -2, 0), (0, -1, 0), (-1, 0, 0)]
+    net = polygon_planform(boundary, edge_length=0.25, elements="triangles")
+    assert _area(net.nodes, net.triangles) == pytest.approx(4.5, rel=1e-12)
+
+
 def test_an_edge_length_far_too_small_is_refused_by_size_not_by_overflow():
     from shellform.scene.checks import grid_shape
 

@@ -127,12 +127,15 @@ def _crossing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     d3 = orient(b1, b2, a1).T
     d4 = orient(b1, b2, a2).T
     proper = (d1 * d2 < 0) & (d3 * d4 < 0)
-    touching = (d1 == 0) | (d2 == 0) | (d3 == 0) | (d4 == 0)
-    # a touching pair meets only where the collinear point lies on the other segment
+    # a collinear end point touches the other segment only where it lies within it
     lo_a, hi_a = np.minimum(a1, a2), np.maximum(a1, a2)
     lo_b, hi_b = np.minimum(b1, b2), np.maximum(b1, b2)
-    boxes = np.all((lo_a[:, None] <= hi_b[None]) & (lo_b[None] <= hi_a[:, None]), axis=2)
-    return proper | (touching & boxes)
+    b1_on_a = np.all((lo_a[:, None] <= b1[None]) & (b1[None] <= hi_a[:, None]), axis=2)
+    b2_on_a = np.all((lo_a[:, None] <= b2[None]) & (b2[None] <= hi_a[:, None]), axis=2)
+    a1_on_b = np.all((lo_b[None] <= a1[:, None]) & (a1[:, None] <= hi_b[None]), axis=2)
+    a2_on_b = np.all((lo_b[None] <= a2[:, None]) & (a2[:, None] <= hi_b[None]), axis=2)
+    touching = ((d1 == 0) & b1_on_a) | ((d2 == 0) & b2_on_a) | ((d3 == 0) & a1_on_b) | ((d4 == 0) & a2_on_b)
+    return proper | touching
 
 
 def _inside(points: np.ndarray, loop: np.ndarray) -> np.ndarray:
@@ -146,11 +149,16 @@ def _inside(points: np.ndarray, loop: np.ndarray) -> np.ndarray:
     return np.count_nonzero(up & (x < xs), axis=1) % 2 == 1
 
 
-def _check_loops(loops: list[np.ndarray]) -> None:
+def _polygon_side(n: int, a: int) -> str:
+    return f"side {a} (corners {a}-{(a + 1) % n})"
+
+
+def _check_loops(loops: list[np.ndarray], side=_polygon_side) -> None:
     """Loops gmsh can mesh: each simple, every hole strictly inside the boundary, holes apart.
 
     gmsh does not refuse a hole that crosses the boundary or a loop that
-    crosses itself: it meshes for minutes or forever.
+    crosses itself: it meshes for minutes or forever. ``side(n, a)`` names
+    segment ``a`` of a loop of ``n`` in a message.
     """
     flat = _in_plane(loops)
     names = ["planform boundary"] + [f"planform hole {k}" for k in range(1, len(loops))]
@@ -161,8 +169,7 @@ def _check_loops(loops: list[np.ndarray]) -> None:
         bad = [(a, b) for a, b in zip(i, j) if not (a == 0 and b == n - 1)]  # neighbours share a corner
         if bad:
             a, b = bad[0]
-            raise ModelError(f"{name}: side {a} (corners {a}-{(a + 1) % n}) meets side {b} (corners {b}-{(b + 1) % n}); "
-                             "a loop must not cross itself")
+            raise ModelError(f"{name}: {side(n, a)} meets {side(n, b)}; a loop must not cross itself")
     for k in range(1, len(flat)):
         if np.any(_crossing(flat[k], flat[0])) or not np.all(_inside(flat[k], flat[0])):
             raise ModelError(f"{names[k]}: not inside the planform boundary (it reaches or crosses it)")
@@ -237,6 +244,8 @@ def curve_planform(loops, *, edge_length: float, elements: str = "quads") -> Qua
     _check_mesh_options(edge_length, elements)
     if not loops or not all(len(loop) for loop in loops):
         raise ModelError("planform curves: every loop needs at least one curve")
+    polylines = [_curve_polyline(loop, k) for k, loop in enumerate(loops)]
+    _check_loops(polylines, _curve_side)
     with gmsh_session("curves") as gmsh:
         occ = gmsh.model.occ
         loop_tags, sides = [], []
@@ -261,8 +270,30 @@ def curve_planform(loops, *, edge_length: float, elements: str = "quads") -> Qua
         return _unstructured(gmsh, edge_length, elements, _loop_groups(sides))
 
 
-def _add_loop(occ, loop, k: int):
-    """The B-spline curves of one loop, sharing their end points; returns (curve tags, corner point tags)."""
+#: points at which each boundary curve is evaluated to check its loop before meshing (a polyline through
+#: them): a crossing of two curves shows unless it is shallower than a 64th of a curve
+CURVE_SAMPLES = 64
+
+
+def _curve_side(n: int, a: int) -> str:
+    return f"curve {a // (CURVE_SAMPLES - 1)}"
+
+
+def _curve_polyline(loop, k: int) -> np.ndarray:
+    """The loop's curves evaluated at CURVE_SAMPLES parameters each, end to end: (m, 3) corners of a polyline."""
+    from .bspline import basis_functions, clamped_uniform_knots
+
+    u = np.linspace(0.0, 1.0, CURVE_SAMPLES)
+    out = []
+    for c, P in zip(loop, _control_points(loop, k)):
+        w = np.ones(len(P)) if c.weights is None else np.broadcast_to(np.asarray(c.weights, dtype=float), (len(P),))
+        N = basis_functions(clamped_uniform_knots(len(P), int(c.degree)), int(c.degree), u) * w
+        out.append(((N @ P) / N.sum(axis=1)[:, None])[:-1])
+    return np.concatenate(out)
+
+
+def _control_points(loop, k: int) -> list[np.ndarray]:
+    """The control points of every curve of a loop, checked: shapes, degrees, weights, curves end to end."""
     what = "planform outer loop" if k == 0 else f"planform hole {k}"
     pts = []
     for m, c in enumerate(loop):
@@ -272,6 +303,13 @@ def _add_loop(occ, loop, k: int):
         if not 1 <= int(c.degree) < len(P):
             raise ModelError(f"{what}, curve {m}: degree {c.degree} does not suit {len(P)} control points "
                              f"(expected 1..{len(P) - 1})")
+        if not np.all(np.isfinite(P)):
+            raise ModelError(f"{what}, curve {m}: control points must be finite")
+        if c.weights is not None:
+            w = np.asarray(c.weights, dtype=float)
+            if w.ndim > 1 or (w.ndim == 1 and len(w) != len(P)) or not np.all(np.isfinite(w) & (w > 0)):
+                raise ModelError(f"{what}, curve {m}: weights must be {len(P)} positive numbers (one per control "
+                                 "point)")
         pts.append(P)
     scale = max(float(np.ptp(np.concatenate(pts), axis=0).max()), 1e-9)
     tol = 1e-9 * scale
@@ -281,6 +319,13 @@ def _add_loop(occ, loop, k: int):
         if np.linalg.norm(a - b) > tol:
             raise ModelError(f"{what}: curve {m} ends at {a.tolist()} but curve {(m + 1) % n} starts at "
                              f"{b.tolist()}; the curves of a loop must run end to end")
+    return pts
+
+
+def _add_loop(occ, loop, k: int):
+    """The B-spline curves of one loop, sharing their end points; returns (curve tags, corner point tags)."""
+    pts = _control_points(loop, k)
+    n = len(loop)
     starts = [occ.addPoint(*P[0]) for P in pts]
     curves = []
     for m, (c, P) in enumerate(zip(loop, pts)):
