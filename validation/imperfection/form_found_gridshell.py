@@ -5,14 +5,16 @@
 Runs ``shellform study imperfection`` on ``form_found_gridshell.toml`` (the
 laths of ``scenes/form_found_gridshell.toml`` on the MRA shape of
 ``meshes/form_found_gridshell.obj``; three modes, both signs, five amplitudes)
-and writes ``form_found_gridshell.json`` and ``form_found_gridshell.md``: the
-perfect shell's critical point with the way its secondary paths go (Koiter's
-class), and the knock-down factor of every mode, sign and amplitude.
+and writes ``form_found_gridshell.json``, ``form_found_gridshell.md`` and
+``form_found_gridshell_knockdown.png``: the perfect shell's critical point with
+the way its secondary paths go (Koiter's class), and the knock-down factor of
+every mode, sign and amplitude.
 """
 
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from pathlib import Path
 
@@ -66,6 +68,7 @@ def main(argv=None) -> int:
     write_json(out / "form_found_gridshell.json", study)
     text = markdown(study)
     write_text(out / "form_found_gridshell.md", text)
+    shutil.copyfile(out / "gridshell_modes" / "knockdown.png", out / "form_found_gridshell_knockdown.png")
     print(text)
     return 0
 
