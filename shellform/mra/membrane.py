@@ -12,7 +12,17 @@ and ``z = 0`` on the rim, whose square solution has the centre deflection
 ``0.0736714 p a^2 / N`` (the series solution on a square,
 :data:`shellform.validation.reference.MEMBRANE_SQUARE_COEFFICIENT`).
 
-This module provides the three pieces of that check:
+On an unstructured net the same equation needs the right force densities. A
+triangulated net whose rope ``ij`` has the force density
+``q_ij = N (cot a_ij + cot b_ij) / 2`` (``a_ij``, ``b_ij`` the angles opposite
+the rope in its two triangles) and whose nodes carry a third of the load on
+each triangle around them *is* the linear finite-element discretisation of the
+membrane (the cotangent Laplacian), and converges to it at second order. Equal
+force densities on triangles converge to a different surface: on a lattice of
+equilateral triangles to the membrane of force ``sqrt(3) q``, on the irregular
+triangles of a mesher to none of constant force.
+
+This module provides the pieces of these checks:
 
 * :func:`force_density_net` - the MRA model of the net: ropes with a rest
   length ``1e-9`` of the spacing and ``EA = q L``, so their force is
@@ -21,7 +31,9 @@ This module provides the three pieces of that check:
 * :func:`force_density_solve` - the same net as a linear force-density
   problem solved with pyamg;
 * :func:`membrane_centre_deflection` - the continuum solution by scikit-fem
-  (quadratic triangles) with the linear system solved by pyamg.
+  (quadratic triangles) with the linear system solved by pyamg;
+* :func:`membrane_force_densities`, :func:`unstructured_force_density_net` and
+  :func:`deflection_at` - the same for an unstructured net of triangles or quads.
 """
 
 from __future__ import annotations
@@ -108,3 +120,74 @@ def membrane_centre_deflection(side: float = 1.0, N: float = 1.0, p: float = 1.0
     w[I] = ml.solve(f[I], tol=tol, accel="cg", maxiter=500)
     centre = basis.probes(np.array([[0.5 * side], [0.5 * side]]))
     return float((centre @ w)[0])
+
+
+def membrane_force_densities(nodes: np.ndarray, triangles: np.ndarray, N: float = 1.0):
+    """Force densities of a triangulated net that make it the membrane of force ``N``, and its nodes' areas.
+
+    Returns
+    -------
+    edges : ndarray (m, 2)
+        Every edge of the triangles once (lower node first).
+    q : ndarray (m,)
+        ``N (cot a + cot b) / 2`` from the angles opposite the edge (one term on the rim).
+    area : ndarray (n,)
+        A third of the area of every triangle at a node (the node's share of a uniform load).
+    """
+    x = np.asarray(nodes, dtype=float)
+    t = np.asarray(triangles, dtype=np.int64)
+    e, cot = [], []
+    for k in range(3):
+        a, b, o = t[:, k], t[:, (k + 1) % 3], t[:, (k + 2) % 3]
+        u, v = x[a] - x[o], x[b] - x[o]
+        e.append(np.sort(np.column_stack([a, b]), axis=1))
+        cot.append(np.einsum("ij,ij->i", u, v) / np.linalg.norm(np.cross(u, v), axis=1))
+    edges, inverse = np.unique(np.concatenate(e), axis=0, return_inverse=True)
+    q = 0.5 * N * np.bincount(inverse.ravel(), weights=np.concatenate(cot), minlength=len(edges))
+    p = x[t]
+    tri_area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    area = np.bincount(t.ravel(), weights=np.repeat(tri_area / 3.0, 3), minlength=len(x))
+    return edges, q, area
+
+
+def unstructured_force_density_net(nodes: np.ndarray, edges: np.ndarray, q: np.ndarray, area: np.ndarray,
+                                   boundary: np.ndarray, p: float = 1.0, g: float = 9.81) -> Structure:
+    """The MRA model of a net with the force density ``q`` of every edge and the load ``p area`` at every node.
+
+    Ropes of rest length ``1e-9`` of their own length and ``EA = q L`` (as
+    :func:`force_density_net`), the loads as weights of point masses, the
+    ``boundary`` fixed. Edges of zero force density carry nothing and are left out.
+    """
+    x = np.asarray(nodes, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if np.any(q < 0):
+        k = int(np.argmin(q))
+        raise ModelError(f"force-density net: edge {k} (nodes {edges[k].tolist()}) has the negative force density "
+                         f"{q[k]:.3g}: a rope cannot push (two obtuse angles face it)")
+    keep = q > 0
+    L = REST_FRACTION * np.linalg.norm(x[edges[keep, 1]] - x[edges[keep, 0]], axis=1)
+    s = Structure(x)
+    s.add_ropes(edges[keep], EA=q[keep] * L, rest_length=L, name="ropes")
+    interior = np.setdiff1d(np.arange(len(x)), boundary)
+    s.add_point_mass(interior, p * np.asarray(area, dtype=float)[interior] / g)
+    s.set_gravity((0.0, 0.0, -g))
+    s.fix(boundary)
+    return s
+
+
+def deflection_at(nodes: np.ndarray, faces: np.ndarray, w: np.ndarray, point) -> float:
+    """The piecewise-linear interpolation of the node values ``w`` at ``point`` (x, y) over triangles or quads."""
+    x = np.asarray(nodes, dtype=float)[:, :2]
+    f = np.asarray(faces, dtype=np.int64)
+    tris = f if f.shape[1] == 3 else np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])
+    a, b, c = x[tris[:, 0]], x[tris[:, 1]], x[tris[:, 2]]
+    d = np.asarray(point, dtype=float)[:2] - a
+    e1, e2 = b - a, c - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    l1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+    l2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+    inside = np.flatnonzero((l1 >= -1e-12) & (l2 >= -1e-12) & (l1 + l2 <= 1 + 1e-12))
+    if not inside.size:
+        raise ModelError(f"deflection_at: the point {list(point)} lies on no face of the net")
+    k = inside[0]
+    return float((1 - l1[k] - l2[k]) * w[tris[k, 0]] + l1[k] * w[tris[k, 1]] + l2[k] * w[tris[k, 2]])
