@@ -96,6 +96,29 @@ def fresh_process(scene: Path, out: Path) -> tuple[float, float, float]:
     return tuple(float(v) for v in done.stdout.split()[-3:])
 
 
+def two_cases(data: dict, out: str, base_dir: str) -> tuple[float, float, float]:
+    """In a pool's worker: when it started its task (``time.time``), its first case's and the same case's wall time."""
+    started, walls = time.time(), []
+    for k in range(2):
+        t = time.perf_counter()
+        run_case(data, f"{out}_{k}", base_dir)
+        walls.append(time.perf_counter() - t)
+    return started, walls[0], walls[1]
+
+
+def pool_start(method: str, case, folder: Path, workers: int) -> tuple[float, float, float]:
+    """A pool of ``workers`` started by ``method``, each running the same case twice: the mean time from the
+    pool's creation to a worker's first task, and the mean first and second case."""
+    tasks = [(w, (case.data, str(folder / f"{method}_{w}"), case.base_dir)) for w in range(workers)]
+    with start_method(method):
+        t0 = time.time()
+        results = [r for _, r in runner.Runner(workers).run(two_cases, tasks, lambda why: SystemExit(why))]
+    if any(isinstance(r, BaseException) for r in results):
+        raise SystemExit(f"pool ({method}): {results}")
+    return (statistics.mean(r[0] - t0 for r in results), statistics.mean(r[1] for r in results),
+            statistics.mean(r[2] for r in results))
+
+
 def plain_loop(cases, folder: Path) -> tuple[float, float, list[float]]:
     """Wall time, CPU time and per-case wall times of the cases run one after the other in this process."""
     walls = []
@@ -188,6 +211,7 @@ def main(argv=None) -> int:
                 say(f"| {r + 1} | sweep | {workers} | {method} | {wall:.2f} | {share:.2f} | {wall - share:.2f} | "
                     f"{100 * over:.1f} % | {cpu:.2f} | {100 * cpu_over:.1f} % | {before} |")
         imports, first, second = fresh_process(scene, tmp / "fresh")
+        starts = {m: pool_start(m, cases[0], tmp / "pool_start", max(args.workers)) for m in args.start_methods}
         say()
         say(f"cases: {min(walls):.2f} to {max(walls):.2f} s each in the loops (mean {sum(walls) / len(walls):.2f} s); "
             f"load average after: {load()}")
@@ -200,6 +224,10 @@ def main(argv=None) -> int:
         say(f"a fresh interpreter (as a spawned worker starts): imports {imports:.2f} s, its first case "
             f"{first:.2f} s, the same case again {second:.2f} s: {imports + first - second:.2f} s before it "
             "runs cases as fast as the loop")
+        for method, (start, first, second) in starts.items():
+            say(f"a pool of {max(args.workers)} ({method}), each worker running the first case twice: "
+                f"{start:.3f} s from the pool's creation to a worker's first task, its first case {first:.2f} s, "
+                f"the same case again {second:.2f} s")
     if args.save:
         RESULTS.mkdir(exist_ok=True)
         command = "OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sweep.py " + " ".join(argv or sys.argv[1:])

@@ -149,6 +149,8 @@ def only_blas_threads() -> bool:
     survive a fork), a library's own. The count of the process's threads
     (``/proc/self/task``) must be exactly one more than OpenBLAS's pools
     (threadpoolctl): anything else, even a count that cannot be read, says no.
+    (Python 3.12 and later warn of any fork of a process with more than one
+    thread, a ``DeprecationWarning`` that OpenBLAS's pools set off too.)
     """
     if threading.active_count() > 1:
         return False

@@ -62,7 +62,7 @@ def critical_record(result) -> dict:
 def run_sample(scene: dict, delta: np.ndarray, max_step_angle: float) -> dict:
     """The critical load factor of the scene with its nodes moved by ``delta``; a failure is a record, not raised.
 
-    Module-level so that a spawned worker or a Dask worker finds it by name.
+    Module-level so that a pool's worker or a Dask worker finds it by name.
     """
     t0 = time.perf_counter()
     try:

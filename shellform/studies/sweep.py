@@ -7,7 +7,8 @@ and gathers one table (``sweep.csv``, ``sweep.json``) and a plot (``sweep.png``)
 Where the cases run (:mod:`shellform.studies.runner`, which studies share):
 
 - ``workers=1``: one after the other in this process;
-- ``workers=N``: on a pool of N processes started afresh (``spawn``);
+- ``workers=N``: on a pool of N local processes (forked from this process
+  after it has imported what cases need, where that is safe; see the runner);
 - ``scheduler=ADDRESS``: on a Dask cluster (the optional extra
   ``pip install shellform[sweep]``; Dask is imported only then).
 
@@ -65,7 +66,7 @@ class SweepOptions:
 def run_case(data: dict, out_dir: str, base_dir: str) -> dict:
     """Run one scene and return its summary; a failure is returned as a summary, not raised.
 
-    Module-level so that a spawned worker or a Dask worker finds it by name.
+    Module-level so that a pool's worker or a Dask worker finds it by name.
     """
     from ..analyses import run_scene
     from ..scene import parse_scene
