@@ -24,6 +24,8 @@ from shellform.io import write_json  # noqa: E402
 from shellform.io.files import write_text  # noqa: E402
 from shellform.studies import StudyOptions, run_imperfection_study  # noqa: E402
 
+from report import knockdown_table  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -41,15 +43,8 @@ def markdown(study: dict) -> str:
         lines += ["", f"Its secondary paths: {after['+']} on the + side, {after['-']} on the - side: "
                   f"**{after['class']}** bifurcation. Mode eigenvalues at the critical point "
                   f"[N/m]: {', '.join(f'{v:.4g}' for v in p['mode_eigenvalues_N_per_m'])}."]
-    lines += ["", "## Knock-down lam_cr / lam_cr,perfect for the lowest three modes", "",
-              "| amplitude / span | " + " | ".join(study["knockdown"]) + " |",
-              "|---|" + "---|" * len(study["knockdown"])]
-    for a in study["amplitudes"]:
-        cells = []
-        for c in study["knockdown"].values():
-            k = dict(zip(c["amplitude"], c["knockdown"])).get(a)
-            cells.append("no critical point" if k is None else f"{k:.4f}")
-        lines.append(f"| {a:.3g} | " + " | ".join(cells) + " |")
+    lines += ["", "## Knock-down lam_cr / lam_cr,perfect for the lowest three modes", ""]
+    lines += knockdown_table(study)
     lines += ["", f"{study['finished']} of {study['samples']} samples finished, {study['failed']} failed; "
               f"wall time {study['wall_time_s']:.1f} s."]
     if study.get("warnings"):

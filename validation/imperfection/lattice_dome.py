@@ -22,6 +22,8 @@ from shellform.io import write_json  # noqa: E402
 from shellform.io.files import write_text  # noqa: E402
 from shellform.studies import StudyOptions, run_imperfection_study  # noqa: E402
 
+from report import knockdown_table  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -33,15 +35,8 @@ def markdown(modes: dict, random: dict, walls: dict) -> str:
     lines = ["# Lattice dome: imperfection sensitivity", "",
              f"Perfect dome: {modes['perfect']['kind']} point at load factor {modes['perfect']['lam_cr']:.6g} "
              "(x 1 kN at the apex, with self-weight).", "",
-             "## Knock-down lam_cr / lam_cr,perfect for the lowest three modes", "",
-             "| amplitude / span | " + " | ".join(modes["knockdown"]) + " |",
-             "|---|" + "---|" * len(modes["knockdown"])]
-    for a in modes["amplitudes"]:
-        cells = []
-        for c in modes["knockdown"].values():
-            k = dict(zip(c["amplitude"], c["knockdown"])).get(a)
-            cells.append("no critical point" if k is None else f"{k:.4f}")
-        lines.append(f"| {a:.3g} | " + " | ".join(cells) + " |")
+             "## Knock-down lam_cr / lam_cr,perfect for the lowest three modes", ""]
+    lines += knockdown_table(modes)
     s = random["statistics"][0]
     f, lam = s["fractile"], s["lam_cr"]
     lines += ["", f"## {random['samples']} Gaussian random fields (correlation length "
