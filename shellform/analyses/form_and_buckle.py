@@ -35,7 +35,8 @@ def rod_chains(grid) -> list[tuple[np.ndarray, bool]]:
             if len(chain) >= 3 or closed]
 
 
-def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | None = None):
+def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | None = None,
+              joint_rotation: float = 0.0):
     """The inverted hanging net as a rod gridshell, loaded by its own form-finding weight.
 
     Every rod edge's first director is the inverted surface's normal
@@ -65,6 +66,7 @@ def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | Non
     for k, (chain, closed) in enumerate(rod_chains(net.grid)):
         director = chain_directors(xi, chain, closed, normals)
         network.add_rod(chain, section, replace(rest, director=director), closed=closed, name=f"rod{k}")
+    network.hold_crossing_angles(joint_rotation)
     s.fix(net.supports)
     # hold the twist of every edge that touches a suspension point: a pinned
     # rod end with free twist could spin about its own axis
@@ -90,7 +92,11 @@ def _section(scene: dict) -> dict:
     described = {"section": rods.get("section") or "circle", "E": E, "G": G}
     described.update({k: rods.get(k) or ROD_DEFAULTS.get(k) for k in ("radius", "thickness", "depth", "width")
                       if rods.get(k) is not None or (k == "radius" and described["section"] != "rectangle")})
-    return {"section": section, "rest": rest, "E": E, "G": G, "described": described, "rest_shape": rest_shape}
+    joint_rotation = rods.get("joint_rotational_stiffness") or 0.0
+    if joint_rotation:
+        described["joint_rotational_stiffness"] = joint_rotation
+    return {"section": section, "rest": rest, "E": E, "G": G, "described": described, "rest_shape": rest_shape,
+            "joint_rotation": joint_rotation}
 
 
 def run_form_and_buckle(scene: dict, out_dir, progress: Progress | None = None, resume: bool = False,
@@ -152,7 +158,7 @@ def _buckle(scene: dict, out: Path, form, summary: dict, resume: bool, say) -> t
 
     b = scene["analysis"]["buckling"]
     sec = _section(scene)
-    structure, network = dome_rods(form, sec["section"], sec["rest"])
+    structure, network = dome_rods(form, sec["section"], sec["rest"], joint_rotation=sec["joint_rotation"])
     system = build_rod_system(network, gravity_scaled=True)
     q_start = None
     if sec["rest_shape"] == "straight":

@@ -115,6 +115,7 @@ class RodNetwork:
         self.rods: list[Rod] = []
         self._arrays: list[RodArrays] = []
         self._joint_pairs: list[np.ndarray] = []
+        self._crossing_stiffness = 0.0
         self._joint_k: list[np.ndarray] = []
         self._frames: ReferenceFrames | None = None
         self._n_edges = 0
@@ -191,6 +192,20 @@ class RodNetwork:
             k = stiffness_ratio * self.joint_reference_stiffness(p)
         self._joint_pairs.append(p)
         self._joint_k.append(k)
+
+    def hold_crossing_angles(self, stiffness: float) -> None:
+        """Rotational springs at every crossing of two rods, ``1/2 k (phi - phi_0)^2`` on the angle between them.
+
+        A crossing is a node two rods share or a penalty joint; the angle is
+        measured between the rods' chords through the crossing
+        (:mod:`shellform.effects.joint_rotation`, :func:`~shellform.rods.crossings.crossing_chords`),
+        ``phi_0`` in the structure's reference state. ``stiffness`` ``k``
+        [N m/rad] >= 0; 0 leaves the joints free to turn (no springs).
+        """
+        k = float(stiffness)
+        if not np.isfinite(k) or k < 0:
+            raise ModelError(f"crossing angles: the rotational stiffness must be a number >= 0, got {stiffness!r}")
+        self._crossing_stiffness = k
 
     def joint_reference_stiffness(self, pairs) -> np.ndarray:
         """The rods' stiffness at each joint [N/m]: the smaller of the two nodes' axial edge stiffness.
@@ -350,6 +365,13 @@ class RodNetwork:
             out.append(RodTwisting(n_dof, self.frames, stencil, self.voronoi, self.GJ, self.natural_twist))
         if len(self.joints):
             out.append(PenaltyJoints(n_dof, self.joints, self.joint_stiffness))
+        if self._crossing_stiffness > 0:
+            from ..effects.joint_rotation import JointRotation
+            from .crossings import crossing_chords
+
+            ends = crossing_chords(self)
+            if len(ends):
+                out.append(JointRotation(n_dof, ends, self._crossing_stiffness, self.structure.reference_state()))
         return out
 
     # -- boundary conditions ------------------------------------------------------------------

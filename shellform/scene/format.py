@@ -291,6 +291,11 @@ SCENE = Table(
                               choices=("penalty", "shared")),
                 "joint_stiffness_ratio": Key("float", "Penalty stiffness over the rods' axial stiffness at the "
                                              "joint (default 1e3).", default=1.0e3, **_POS),
+                "joint_rotational_stiffness": Key("float", "Rotational spring on the angle between the two rods "
+                                                  "at every crossing (a shared node or a penalty joint): the "
+                                                  "scissor stiffness of a tightened or braced joint, stress free at "
+                                                  "the angle of the scene's geometry; 0 lets the rods turn freely.",
+                                                  default=0.0, unit="N m/rad", **_NONNEG),
                 "support_rotation": Key("str", "Rods at a supported node of a [nodes] or mesh-file scene: "
                                         "'free' to turn about it (the twist of their edges that touch it held, so "
                                         "that they cannot spin), or 'clamped' (both nodes of every rod edge that "

@@ -23,6 +23,7 @@ _TABLE_SCOPE = {
     "imperfection": (BAR_ROPE + ("indentation",), "bar/rope structures and the hemisphere"),
 }
 _ROD_SCOPE = {"rest_shape": ("form_and_buckle",) + BAR_ROPE, "joints": ("indentation",) + BAR_ROPE,
+              "joint_rotational_stiffness": ("form_and_buckle",) + BAR_ROPE,
               "joint_stiffness_ratio": ("indentation",) + BAR_ROPE,
               **{k: ("form_and_buckle",) + BAR_ROPE for k in ("section", "thickness", "depth", "width")},
               **{k: BAR_ROPE for k in ("layout", "lines", "orientation", "support_rotation")}}
