@@ -151,6 +151,18 @@ def chosen_method() -> str:
         return runner.start_method()
 
 
+def uneven_end(case_walls: list[float], workers: int) -> float:
+    """What an even share of work cannot avoid: the cases, with their loop times, handed in order to whichever
+    of ``workers`` is free first (as the pool does); the share of the work per worker by which the last one
+    ends after it."""
+    free = [0.0] * workers
+    for wall in case_walls:
+        k = free.index(min(free))
+        free[k] += wall
+    share = sum(case_walls) / workers
+    return (max(free) - share) / share
+
+
 def load() -> str:
     one, five, _ = os.getloadavg()
     return f"{one:.2f} (5 min: {five:.2f})"
@@ -188,12 +200,14 @@ def main(argv=None) -> int:
         runs = [(w, "-") for w in args.workers if w == 1]
         runs += [(w, m) for w in args.workers if w > 1 for m in args.start_methods]
         overheads: dict[tuple[int, str], list[tuple[float, float]]] = {run: [] for run in runs}
-        walls = []
+        walls, uneven = [], {w: [] for w in args.workers if w > 1}
         for r in range(args.rounds):
             before = load()
             loop_wall, loop_cpu, case_walls = plain_loop(cases, tmp / f"loop_{r}")
             walls += case_walls
             work = sum(case_walls)
+            for w in uneven:
+                uneven[w].append(uneven_end(case_walls, w))
             say(f"| {r + 1} | plain loop | 1 | - | {loop_wall:.2f} | {work:.2f} | - | - | {loop_cpu:.2f} | - "
                 f"| {before} |")
             for workers, method in runs:
@@ -220,6 +234,9 @@ def main(argv=None) -> int:
             say(f"median over {len(values)} round(s), {workers} worker(s){how}: overhead "
                 f"{100 * statistics.median(v[0] for v in values):.1f} % of the wall time, "
                 f"{100 * statistics.median(v[1] for v in values):.1f} % of the CPU time")
+        for w, values in uneven.items():
+            say(f"{w} workers given the loop's cases in order: the last ends {100 * statistics.median(values):.1f} % "
+                "(median of the rounds) after an even share of the work, with no overhead at all")
         say()
         say(f"a fresh interpreter (as a spawned worker starts): imports {imports:.2f} s, its first case "
             f"{first:.2f} s, the same case again {second:.2f} s: {imports + first - second:.2f} s before it "
