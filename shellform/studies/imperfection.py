@@ -68,7 +68,7 @@ class StudyOptions:
 
     workers: int = 2
     scheduler: str | None = None
-    #: run every sample again, also those a previous study into the folder finished
+    #: compute the perfect structure and every sample again, also what a previous study into the folder finished
     rerun: bool = False
     runner: Runner = field(init=False)
 
@@ -100,12 +100,14 @@ def _settings_record(s: StudySettings) -> dict:
             "relative_to": s.relative_to, "max_step_angle": s.max_step_angle}
 
 
-def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, progress: Progress) -> Perfect:
-    """The perfect structure's critical point and modes, from ``perfect.npz`` when it is of this study."""
+def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, progress: Progress,
+             rerun: bool = False) -> Perfect:
+    """The perfect structure's critical point and modes, from ``perfect.npz`` when it is of this study
+    (and not ``rerun``: then everything is computed again)."""
     model = imperfect_model(scene, None)
     k = settings.modes if settings.shapes != "random_field" else 0
     key = digest(fingerprint, k)
-    saved = load_checkpoint(out / "perfect.npz")
+    saved = None if rerun else load_checkpoint(out / "perfect.npz")
     if saved is not None and str(saved.get("key")) == key:
         progress(f"perfect structure: from {out / 'perfect.npz'}")
         return Perfect(float(saved["lam_cr"]), str(saved["kind"]), float(saved["reference_length"]),
@@ -235,7 +237,7 @@ def run_imperfection_study(scene_path, out_dir, options: StudyOptions | None = N
     fingerprint = _fingerprint(raw, base_dir, settings)
     t0 = time.perf_counter()
     with output_lock(output_folder(out_dir)) as out:
-        perfect = _perfect(scene, settings, out, fingerprint, progress)
+        perfect = _perfect(scene, settings, out, fingerprint, progress, opts.rerun)
         structure = imperfect_model(scene, None).structure
         shapes = Shapes(settings, perfect, structure)
         samples = sh.study_samples(settings)
