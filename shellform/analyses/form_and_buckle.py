@@ -67,6 +67,7 @@ def dome_rods(result, section: RodSection, rest: RestShape, plane_z: float | Non
         director = chain_directors(xi, chain, closed, normals)
         network.add_rod(chain, section, replace(rest, director=director), closed=closed, name=f"rod{k}")
     network.hold_crossing_angles(joint_rotation)
+    network.anchor_held_twists()
     s.fix(net.supports)
     # hold the twist of every edge that touches a suspension point: a pinned
     # rod end with free twist could spin about its own axis

@@ -213,6 +213,8 @@ class ReferenceFrames:
         Stored reference twist ``m`` at every hinge.
     accepted : int
         How many states have been accepted since construction.
+    anchored : ndarray (m,) of bool
+        Edges whose frames stay where they were anchored (:meth:`anchor`).
     """
 
     def __init__(self, n_nodes: int, edges: np.ndarray, hinges: np.ndarray, q: np.ndarray, directors: np.ndarray):
@@ -228,6 +230,7 @@ class ReferenceFrames:
         self._positions = x.copy()
         self.accepted = 0
         self._hinge_cache = None
+        self.anchored = np.zeros(len(self.edges), dtype=bool)
 
     # -- evaluation at a trial state ------------------------------------------------
     def tangents(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -271,17 +274,38 @@ class ReferenceFrames:
         return self.twist - solid_angle(s0, t[h0], t[h1]) - solid_angle(s0, t[h1], s1)
 
     # -- history ------------------------------------------------------------------------
+    def anchor(self, edges: np.ndarray) -> None:
+        """Keep the frames of ``edges`` (a bool mask or indices) at their stored state when states are accepted.
+
+        A twist angle held fixed is measured from its edge's reference frame.
+        Carried along the path by time-parallel transport, that frame depends on
+        the sequence of accepted states (the holonomy of the transport), and so
+        would the held twist's meaning and the equilibrium that follows from it.
+        An anchored frame is transported in one piece from where it was
+        anchored to the edge's current tangent, a function of that tangent
+        alone. An edge that turns by 90 degrees or more from its anchor is
+        anchored afresh at the state then accepted, away from the antipode
+        where the transport is undefined.
+        """
+        mask = np.zeros(len(self.edges), dtype=bool)
+        mask[np.asarray(edges)] = True
+        self.anchored = mask
+
     def update(self, q: np.ndarray) -> bool:
-        """Make ``q`` the stored state. Returns False (and does nothing) if it already is."""
+        """Make ``q`` the stored state (anchored frames stay). Returns False (and does nothing) if it already is."""
         x = node_positions(np.asarray(q, dtype=float), self.n_nodes)
         if np.array_equal(x, self._positions):
             return False
         t, _ = self.tangents(q)
-        twist = self.reference_twist(q)
+        keep = self.anchored & (dot(t, self.tangent) > 0.0)
+        new_t = np.where(keep[:, None], self.tangent, t)
+        # the reference twist at the stored tangents to be: the edges that move take their current tangents
+        h0, h1 = self.hinges[:, 0], self.hinges[:, 1]
+        s0, s1 = self.tangent[h0], self.tangent[h1]
+        self.twist = self.twist - solid_angle(s0, new_t[h0], new_t[h1]) - solid_angle(s0, new_t[h1], s1)
         u = parallel_transport(self.director, self.tangent, t)
-        self.director = normalize(u - dot(u, t)[:, None] * t)
-        self.tangent = t
-        self.twist = twist
+        self.director = np.where(keep[:, None], self.director, normalize(u - dot(u, t)[:, None] * t))
+        self.tangent = new_t
         self._positions = x.copy()
         self.accepted += 1
         return True

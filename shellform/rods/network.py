@@ -116,6 +116,7 @@ class RodNetwork:
         self._arrays: list[RodArrays] = []
         self._joint_pairs: list[np.ndarray] = []
         self._crossing_stiffness = 0.0
+        self._anchor_held = False
         self._joint_k: list[np.ndarray] = []
         self._frames: ReferenceFrames | None = None
         self._n_edges = 0
@@ -192,6 +193,20 @@ class RodNetwork:
             k = stiffness_ratio * self.joint_reference_stiffness(p)
         self._joint_pairs.append(p)
         self._joint_k.append(k)
+
+    def anchor_held_twists(self) -> None:
+        """Measure every held twist angle from a frame anchored where the twist was held
+        (:meth:`~shellform.effects.rod_kinematics.ReferenceFrames.anchor`).
+
+        With the frames carried along the path by time-parallel transport, a
+        twist held at a support means something that depends on the steps
+        taken to get there: equilibrium found in large steps and in small ones
+        differs (by 2e-4 in the first critical load factor of a gridshell of
+        timber laths pinned on its boundary). Anchored, it is a function of the
+        edge's current direction alone. The edges are those whose twist DOF is
+        constrained when the effects are built.
+        """
+        self._anchor_held = True
 
     def hold_crossing_angles(self, stiffness: float) -> None:
         """Rotational springs at every crossing of two rods, ``1/2 k (phi - phi_0)^2`` on the angle between them.
@@ -357,6 +372,8 @@ class RodNetwork:
         if not self.rods:
             raise ModelError("rod network: no rods have been added")
         n_dof = self.structure.n_dof
+        if self._anchor_held:
+            self.frames.anchor(self.structure.constrained_mask[self.edge_twist])
         out = [RodStretching(n_dof, self.edges, self.EA, self.rest_length)]
         if self._n_hinges:
             stencil = self.hinge_stencils()

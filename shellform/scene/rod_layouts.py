@@ -196,6 +196,7 @@ def add_scene_rods(scene: dict, structure, layout: RodLayout):
     if len(layout.pairs):
         network.add_joints(layout.pairs, stiffness_ratio=rods["joint_stiffness_ratio"])
     network.hold_crossing_angles(rods["joint_rotational_stiffness"])
+    network.anchor_held_twists()
     _hold_rods_at_supports(structure, network, rods["support_rotation"], layout)
     return network
 
