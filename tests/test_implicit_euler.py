@@ -55,6 +55,40 @@ def test_last_step_takes_the_remainder_not_a_sliver():
     assert res.t == pytest.approx(3.0, abs=1e-12)
 
 
+def test_first_step_grows_back_to_the_time_step():
+    """A small first step doubles step by step up to h; the times are those steps' sums."""
+    s = oscillator()
+    q0 = s.reference_state()
+    q0[3] += 0.3
+    res = implicit_euler(build_system(s), 0.08, 0.8, q0=q0, damping=0.5, first_step=0.01)
+    assert res.success, res.message
+    assert np.diff(np.concatenate([[0.0], res.times]))[:5] == pytest.approx([0.01, 0.02, 0.04, 0.08, 0.08])
+    with pytest.raises(ModelError, match="first_step"):
+        implicit_euler(build_system(s), 0.08, 0.8, q0=q0, first_step=0.0)
+
+
+def test_a_rejected_step_holds_the_reduced_size(monkeypatch):
+    """After a failed step the halved size is kept for hold_after_reject accepted steps."""
+    import shellform.solvers.implicit_euler as ie
+
+    step = ie.Stepper.step
+    calls = []
+
+    def fail_first(self, q, v, t, h):
+        calls.append(h)
+        if len(calls) == 1:
+            return None, "forced failure", 0
+        return step(self, q, v, t, h)
+
+    monkeypatch.setattr(ie.Stepper, "step", fail_first)
+    s = oscillator()
+    q0 = s.reference_state()
+    q0[3] += 0.3
+    res = implicit_euler(build_system(s), 0.08, 0.8, q0=q0, damping=0.5, hold_after_reject=2)
+    assert res.success and res.rejected_steps == 1
+    assert calls[:6] == pytest.approx([0.08, 0.04, 0.04, 0.04, 0.08, 0.08])
+
+
 def test_first_order_convergence_to_the_exact_oscillation():
     s = oscillator()
     system = build_system(s)

@@ -24,17 +24,26 @@ from ..solvers.stability import count_negative, smallest_eigenpair
 LINEAR_SOLVER = "ldl"
 
 
+#: Newton iterations of a bisection point's plain solve before the regularised one takes
+#: over: from the middle of a bracket Newton converges in two or three, and next to the
+#: critical point, where it overshoots, thirty iterations only wander
+LOCATE_NEWTON = 8
+
+
 def lowest_mode(K) -> np.ndarray | None:
     """Unit eigenvector of the smallest eigenvalue of ``K`` (None when it cannot be computed)."""
     return smallest_eigenpair(K)[1]
 
 
-def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, t_max: float):
+def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, t_max: float,
+                     first_step: float | None = None, hold_after_reject: int = 0):
     """Let the structure move from ``q`` under damped implicit Euler dynamics until it is nearly at rest.
 
     This is the paper's own way through a snap (inertia and damping carry the
-    structure to the next stable state). Returns the last state, or ``q``
-    when no time integrator is available.
+    structure to the next stable state). ``first_step`` and
+    ``hold_after_reject`` are those of
+    :class:`~shellform.solvers.implicit_euler.ImplicitEulerOptions`. Returns
+    the last state, or ``q`` when no time integrator is available.
     """
     try:
         from ..solvers.implicit_euler import implicit_euler, lumped_mass
@@ -48,7 +57,7 @@ def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, 
         return static <= 1e-7 * scale
 
     res = implicit_euler(system, h, t_max, q0=q, mass=mass, damping=damping, mu=mu, stop=stop,
-                         linear_solver=LINEAR_SOLVER)
+                         linear_solver=LINEAR_SOLVER, first_step=first_step, hold_after_reject=hold_after_reject)
     return res.q, int(sum(res.newton_iterations))
 
 
@@ -73,6 +82,15 @@ class SettleOptions:
     time_step, damping, t_max : float
         Time step [s], mass-proportional damping [1/s] and longest time [s]
         of the dynamics.
+    first_step : float
+        The dynamics start with this fraction of ``time_step`` and double it
+        step by step: a structure pushed off a critical state is far from
+        equilibrium, and full steps from rest there fail their Newton
+        iterations (25 each, every one a factorisation) before a halved one
+        succeeds.
+    hold_after_reject : int
+        Accepted steps at a reduced size, after a failed one, before the
+        step grows again (a size that has just failed fails again).
     """
 
     amplitude: float
@@ -83,6 +101,8 @@ class SettleOptions:
     time_step: float = 1.0e-3
     damping: float = 100.0
     t_max: float = 0.5
+    first_step: float = 0.125
+    hold_after_reject: int = 3
 
 
 def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, options: SettleOptions):
@@ -117,10 +137,12 @@ def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, optio
                 system.accept(res.q)
                 return res.q, iterations, "stable"
             setup.model.network.frames.restore(frames)
-            q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max)
+            q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max,
+                                      o.first_step * o.time_step, o.hold_after_reject)
             iterations += its
         elif o.method == "dynamic":
-            q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max)
+            q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max,
+                                      o.first_step * o.time_step, o.hold_after_reject)
             iterations += its
         # descend in rounds, accepting the state in between: a snap can turn rod
         # edges far from the stored frames, and the frames must follow
@@ -161,7 +183,8 @@ def locate_stability_loss(setup, qa, mua, qb, mub, tol):
     while hi[0] - lo[0] > tol:
         mu = 0.5 * (lo[0] + hi[0])
         start = 0.5 * (lo[1] + hi[1])
-        res = solve_static(system, start, mu=mu, merit="residual", max_iter=30, linear_solver=LINEAR_SOLVER)
+        res = solve_static(system, start, mu=mu, merit="residual", max_iter=LOCATE_NEWTON,
+                           linear_solver=LINEAR_SOLVER)
         if not res.success:
             # next to the critical point the tangent is nearly singular and the
             # plain Newton step overshoots; a regularised step does not

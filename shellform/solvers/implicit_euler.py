@@ -132,6 +132,16 @@ class ImplicitEulerOptions:
         Newton iterations of a step before it is retried with half the time step.
     min_step : float, optional
         Smallest time step [s] a failing step is halved down to (default ``h / 1024``).
+    first_step : float, optional
+        Size of the first step [s] (default ``h``); later steps grow back to
+        ``h`` by doubling. A start far from equilibrium (a structure pushed
+        off a critical state) takes a small first step instead of failing
+        the large ones first.
+    hold_after_reject : int
+        After a step is retried with a smaller time step, this many accepted
+        steps keep the reduced size before it grows again (0: it doubles after
+        every accepted step). A size that has just failed tends to fail again
+        right away.
     linear_solver : str
         See :mod:`shellform.solvers.linear`.
     keep_factor : bool
@@ -155,6 +165,8 @@ class ImplicitEulerOptions:
     roundoff_rtol: float = ROUNDOFF_RTOL
     max_newton: int = 25
     min_step: float | None = None
+    first_step: float | None = None
+    hold_after_reject: int = 0
     linear_solver: str = "direct"
     save_every: int = 0
     keep_factor: bool = True
@@ -259,6 +271,11 @@ def implicit_euler(
     q = stepper.supports(system.state(base=q0), t0)
     v = np.zeros(system.n_dof) if v0 is None else np.array(v0, dtype=float)
     t, dt = t0, h
+    if o.first_step is not None:
+        if not (np.isfinite(o.first_step) and o.first_step > 0):
+            raise ModelError(f"implicit Euler: first_step must be positive, got {o.first_step}")
+        dt = min(h, float(o.first_step))
+    hold = 0  # accepted steps left before the step may grow again
     run = _Trajectory(q, v, t, mass, o.save_every, started)
     while t_end - t > 1e-9 * h:
         # the last step takes the remainder, never a sliver of a step after it (a step of
@@ -268,6 +285,7 @@ def implicit_euler(
         if q_new is None:
             run.res.rejected_steps += 1
             dt *= 0.5
+            hold = o.hold_after_reject
             if dt < min_step:
                 return run.end(q, v, t, False, f"time step fell below {min_step:.3g} s at t = {t:.6g} s: {r}")
             continue
@@ -280,7 +298,10 @@ def implicit_euler(
             stepper.kept = None
         if o.stop is not None and o.stop(t, q, v, static):
             return run.end(q, v, t, True, f"stopped at t = {t:.6g} s after {run.res.steps} steps")
-        dt = min(h, 2.0 * dt)
+        if hold > 0:
+            hold -= 1
+        else:
+            dt = min(h, 2.0 * dt)
     return run.end(q, v, t, True, f"reached t = {t:.6g} s in {run.res.steps} steps")
 
 
