@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .effects import AxialBar, Effect, Rope, gravity_effect, nodal_load_effects
+from .effects.sliding import sliding_effects
 from .errors import ModelError
 from .model import Structure
 
@@ -356,10 +357,14 @@ class System:
         return values, pattern.matrix(grads)
 
     def reactions(self, q: np.ndarray, lam: float = 1.0) -> np.ndarray:
-        """Forces the supports exert on the structure, all DOFs (zero where free)."""
+        """Forces the supports exert on the structure, all DOFs (zero where free): the residual at the
+        constrained DOFs, and the springs of sliding supports."""
         r = self.residual(q, lam)
         out = np.zeros(self.n_dof)
         out[self.constrained] = r[self.constrained]
+        for e in self.effects:
+            if getattr(e, "is_support", False):
+                out -= e.gradient(q)
         return out
 
     def accept(self, q: np.ndarray) -> None:
@@ -404,7 +409,7 @@ def build_system(structure: Structure, gravity_scaled: bool = False, check: bool
     Members give axial or rope effects, load cases give constant forces, and
     self-weight is included only when ``structure.gravity`` is set.
     """
-    effects = member_effects(structure) + nodal_load_effects(structure)
+    effects = member_effects(structure) + sliding_effects(structure) + nodal_load_effects(structure)
     if structure.gravity is not None:
         effects.append(gravity_effect(structure, scales_with_load=gravity_scaled))
     return System(structure, effects, check=check)

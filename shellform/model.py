@@ -25,6 +25,25 @@ STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 MAX_COORDINATE = 1.0e12
 
 
+#: what a node slides on
+SLIDE_KINDS = ("plane", "line")
+#: spring across a sliding support's plane or line, as a multiple of the stiffest member at the node
+SLIDE_STIFFNESS_RATIO = 1.0e2
+
+
+@dataclass(frozen=True)
+class Slider:
+    """Nodes that slide on a plane or along a line: the projector onto the directions they are held in, a
+    point of each node's plane or line (None: the node's reference position), and the springs' stiffness
+    (None: ``stiffness_ratio`` times the stiffest member at each node)."""
+
+    nodes: np.ndarray
+    held: np.ndarray
+    stiffness_ratio: float
+    origin: np.ndarray | None = None
+    stiffness: np.ndarray | None = None
+
+
 @dataclass(frozen=True)
 class MemberGroup:
     """A set of two-node members sharing one constitutive law.
@@ -158,6 +177,7 @@ class Structure:
         self.load_cases: list[LoadCase] = []
         self.point_mass = np.zeros(len(nodes))
         self.gravity: np.ndarray | None = None
+        self.sliders: list[Slider] = []
 
     # -- sizes and numbering -------------------------------------------------
     @property
@@ -299,6 +319,26 @@ class Structure:
         nodes = _as_index_array(np.atleast_1d(nodes), self.n_nodes, "support")
         comps = parse_dofs(dofs, "support dofs")
         self._fixed[self.node_dofs(nodes)[:, comps].ravel()] = True
+
+    def slide(self, nodes, kind: str, direction, stiffness_ratio: float = SLIDE_STIFFNESS_RATIO) -> None:
+        """Let ``nodes`` slide on a plane (``kind = "plane"``, ``direction`` its normal) or along a line
+        (``"line"``, ``direction`` the line's) through their reference positions, of any direction.
+
+        Held by stiff springs across the plane or line
+        (:class:`~shellform.effects.sliding.SlidingSupports`), ``stiffness_ratio``
+        times the stiffest member at each node when the system is built.
+        """
+        nodes = _as_index_array(np.atleast_1d(nodes), self.n_nodes, "sliding support")
+        if kind not in SLIDE_KINDS:
+            raise ModelError(f"sliding support: kind must be one of {SLIDE_KINDS}, got {kind!r}")
+        d = np.asarray(direction, dtype=float)
+        if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0:
+            raise ModelError(f"sliding support: direction must be a non-zero finite [x, y, z], got {direction!r}")
+        if not (np.isfinite(stiffness_ratio) and stiffness_ratio > 0):
+            raise ModelError(f"sliding support: stiffness_ratio must be a positive number, got {stiffness_ratio!r}")
+        d = d / np.linalg.norm(d)
+        held = np.outer(d, d) if kind == "plane" else np.eye(3) - np.outer(d, d)
+        self.sliders.append(Slider(nodes, held, float(stiffness_ratio)))
 
     def prescribe(self, nodes, direction) -> None:
         """Prescribe the motion of ``nodes``: displacement = ``parameter * direction``.

@@ -17,11 +17,12 @@ core assembly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..assembly import System, build_system
+from ..effects.sliding import sliding_effects
 from ..errors import ModelError
 from ..model import Structure
 from .formfind import FormFindingResult
@@ -113,6 +114,19 @@ def invert(result: FormFindingResult, plane_z: float | None = None) -> InvertedS
     shell.add_bars(net.rope_edges, EA=EA, rest_length=rest, name="members")
     mask = hang.constrained_mask[: 3 * hang.n_nodes]
     shell.fix_dofs(np.flatnonzero(mask))
+    springs = sliding_effects(hang)
+    at = 0
+    for slider in hang.sliders:
+        # the plane or line mirrored with the net; the shell pushes on it where the net pulled, so its
+        # spring (the net's, whatever the shell's members) stretched the other way carries the mirrored
+        # reaction: the point of the plane or line is the hanging one reflected through the node
+        hung = hang.nodes[slider.nodes] if slider.origin is None else slider.origin
+        origin = (2.0 * x[slider.nodes] - hung) * MIRROR
+        origin[:, 2] += 2.0 * plane_z
+        k = springs[0].k[at: at + len(slider.nodes)]
+        at += len(slider.nodes)
+        shell.sliders.append(replace(slider, held=MIRROR[:, None] * slider.held * MIRROR[None, :], origin=origin,
+                                     stiffness=k))
     system = build_system(shell)
     q = shell.reference_state()
     force = system.member_results(q)["members"]["axial_force"]

@@ -26,7 +26,7 @@ from ..errors import ModelError
 from ..geometry.grids import QuadGrid
 from ..geometry.meshnet import MeshNet
 from ..geometry.selection import nearest_nodes, nodes_in_box, nodes_on_polyline
-from ..model import STANDARD_GRAVITY, Structure, parse_dofs
+from ..model import SLIDE_STIFFNESS_RATIO, STANDARD_GRAVITY, Structure, parse_dofs
 
 #: keys of a support entry that choose nodes
 SELECT_KEYS = ("groups", "positions", "nodes", "frames", "near", "box", "curve", "z")
@@ -89,6 +89,10 @@ class HangingNet:
         return float(s.nodal_mass().sum() * g + loads)
 
 
+#: keys of a support entry that let its nodes slide on a tilted plane or line (Structure.slide)
+SLIDE_KEYS = ("slide", "slide_direction", "slide_stiffness_ratio")
+
+
 def support_nodes(grid: QuadGrid | MeshNet, spec: dict | None) -> tuple[np.ndarray, np.ndarray]:
     """Suspension points from a specification; returns ``(nodes, lifted_z)``.
 
@@ -110,10 +114,10 @@ def support_nodes(grid: QuadGrid | MeshNet, spec: dict | None) -> tuple[np.ndarr
     the height added to each node (zero except on frames with a rise).
     """
     spec = spec or {}
-    unknown = set(spec) - set(SELECT_KEYS) - {"dofs", "tolerance", "z_tolerance"}
+    unknown = set(spec) - set(SELECT_KEYS) - {"dofs", "tolerance", "z_tolerance"} - set(SLIDE_KEYS)
     if unknown:
         raise ModelError(f"supports: unknown keys {sorted(unknown)}; expected {', '.join(SELECT_KEYS)}, tolerance, "
-                         "dofs")
+                         f"dofs, {', '.join(SLIDE_KEYS)}")
     chosen = select_nodes(grid, spec, "supports")
     lift = np.zeros(grid.n_nodes)
     for k, frame in enumerate(spec.get("frames") or []):
@@ -287,8 +291,12 @@ def hanging_net(grid: QuadGrid | MeshNet, supports: dict | list | None = None, o
     ropes = _RopeEdges(edges, family, cable, held, rest, mass_per_length)
     kept = _add_rope_groups(s, o, ropes, EA, grid.structured)
     out_family = np.where(cable[kept] >= 0, CABLE_FAMILY, family[kept])
-    for nodes, _, dofs in chosen:
-        s.fix(nodes, dofs)
+    entries = [supports] if supports is None or isinstance(supports, dict) else list(supports)
+    for (nodes, _, dofs), e in zip(chosen, entries):
+        if (e or {}).get("slide"):
+            s.slide(nodes, e["slide"], e["slide_direction"], e.get("slide_stiffness_ratio") or SLIDE_STIFFNESS_RATIO)
+        else:
+            s.fix(nodes, dofs)
     all_dofs = {dofs for _, _, dofs in chosen}
     nodes_sup = np.unique(np.concatenate([c[0] for c in chosen]))
     return HangingNet(grid=grid, structure=s, supports=nodes_sup, rope_edges=edges[kept], family=out_family,
@@ -300,10 +308,13 @@ def hanging_net(grid: QuadGrid | MeshNet, supports: dict | list | None = None, o
 def _chosen_supports(grid, supports) -> tuple[list, np.ndarray]:
     """Each support entry's nodes, lift and held components; and which components of every node are held."""
     entries = [supports] if supports is None or isinstance(supports, dict) else list(supports)
-    chosen = [(*support_nodes(grid, e), (e or {}).get("dofs", "xyz")) for e in entries]
+    # a node that slides on a tilted plane or line holds no coordinate axis: none of its own is fixed
+    chosen = [(*support_nodes(grid, e), "" if (e or {}).get("slide") else (e or {}).get("dofs", "xyz"))
+              for e in entries]
     held_axes = np.zeros((grid.n_nodes, 3), dtype=bool)
     for nodes, _, dofs in chosen:
-        held_axes[np.ix_(nodes, parse_dofs(dofs, "support dofs"))] = True
+        if dofs:
+            held_axes[np.ix_(nodes, parse_dofs(dofs, "support dofs"))] = True
     return chosen, held_axes
 
 

@@ -489,7 +489,9 @@ def build_rod_system(network: RodNetwork, extra_effects=(), gravity_scaled: bool
         e = kinds[g.kind](s.n_dof, g.connectivity, g.EA, g.rest_length)
         e.label = g.name
         effects.append(e)
-    effects += nodal_load_effects(s)
+    from ..effects.sliding import sliding_effects
+
+    effects += sliding_effects(s) + nodal_load_effects(s)
     if s.gravity is not None:
         effects.append(gravity_effect(s, scales_with_load=gravity_scaled))
     effects += list(extra_effects)

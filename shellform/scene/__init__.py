@@ -51,6 +51,7 @@ from .checks import (
     MAX_TIME_STEPS,
     check_bar_rope,
     check_hemisphere,
+    check_slides,
     check_imperfection,
     check_planform,
     grid_shape,
@@ -129,6 +130,7 @@ def parse_scene(data: dict, base_dir=None) -> dict:
     scene["single_support"] = isinstance(data.get("supports"), dict)
     check_scope(data, scene, source, "buckling" in legacy)
     check_imperfection(scene)
+    check_slides(data, scene)
     if source == "planform" or (source == "file" and scene["analysis"]["type"] in FORM_FINDING):
         check_planform(scene, base_dir)
     elif source in ("nodes", "file"):

@@ -334,3 +334,23 @@ def check_hemisphere(scene: dict) -> None:
     if imp is not None and imp["type"] != "forces":
         raise SceneError("imperfection.type", f"got {imp['type']!r}; the hemisphere takes only 'forces' (random "
                          "dead forces, as in the paper)")
+
+
+def check_slides(data: dict, scene: dict) -> None:
+    """A sliding support names its plane or line, and holds nothing by ``dofs`` besides."""
+    raw = data.get("supports")
+    raw = [raw] if isinstance(raw, dict) else list(raw or [])
+    for i, (sup, given) in enumerate(zip(scene["supports"], raw)):
+        if sup["slide"] is None:
+            if sup["slide_direction"] is not None:
+                raise SceneError(support_key(scene, i, "slide_direction"), "applies with slide = 'plane' or 'line'")
+            continue
+        if sup["slide_direction"] is None:
+            what = "the plane's normal" if sup["slide"] == "plane" else "the line's direction"
+            raise SceneError(support_key(scene, i, "slide_direction"), f"slide = {sup['slide']!r} needs {what}, "
+                             "for example [0.0, 0.5, 1.0]")
+        if not np.linalg.norm(sup["slide_direction"]) > 0:
+            raise SceneError(support_key(scene, i, "slide_direction"), "got [0, 0, 0]; a direction needs a length")
+        if isinstance(given, dict) and "dofs" in given:
+            raise SceneError(support_key(scene, i, "dofs"), "a sliding support holds its nodes on the plane or line "
+                             "only; give either dofs (axis-aligned) or slide, not both")

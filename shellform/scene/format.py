@@ -156,6 +156,13 @@ SUPPORTS = Table(
         "z_tolerance": Key("float", "Tolerance of z.", default=1.0e-6, unit="m", **_NONNEG),
         "dofs": Key("str", "Fixed components, any of the letters x, y, z; the others slide: 'z' on a horizontal "
                     "plane, 'yz' along a line parallel to x.", default="xyz"),
+        "slide": Key("str", "Slide on a plane or along a line of any direction (`slide_direction`) through each "
+                     "node instead of fixing `dofs`: held by a stiff spring across the plane or line, whose force "
+                     "is the reaction.", default=None, choices=("plane", "line")),
+        "slide_direction": Key("vec3", "The plane's normal or the line's direction (any length).", default=None),
+        "slide_stiffness_ratio": Key("float", "The spring across the plane or line as a multiple of the "
+                                     "stiffest member at the node: the node leaves its plane or line by its "
+                                     "reaction over that stiffness.", default=1.0e2, **_POS),
     },
 )
 

@@ -28,6 +28,8 @@ def _plain(v):
 
 def mra_params(scene: dict) -> dict:
     """The parameters of :func:`shellform.analyses.form_finding.run_mra_case` for a validated form-finding scene."""
+    from ..mra.net import SLIDE_KEYS
+
     g = scene["geometry"]
     geometry = {"type": g["type"], **{k: _plain(g[k]) for k in _GEOMETRY_KEYS[g["type"]] if g[k] is not None}}
     if g["type"] == "polygon":
@@ -37,7 +39,7 @@ def mra_params(scene: dict) -> dict:
     elif g["type"] in ("surface", "file"):
         geometry["file"] = str(scene["geometry_path"])
     entries = scene["supports"]
-    extra = ("near", "box", "curve", "z")
+    extra = ("near", "box", "curve", "z", "slide")
     if len({s["dofs"] for s in entries}) == 1 and not any(s[k] is not None for s in entries for k in extra):
         # one suspension-point set held alike: the layout of a structured grid's scenes
         supports = {"dofs": entries[0]["dofs"]}
@@ -51,6 +53,7 @@ def mra_params(scene: dict) -> dict:
             supports["frames"] = frames
     else:
         supports = [{"dofs": s["dofs"], **{k: _plain(s[k]) for k in _SUPPORT_KEYS if s[k] is not None},
+                     **({k: _plain(s[k]) for k in SLIDE_KEYS} if s["slide"] else {}),
                      **({"frames": [{"from": f["from"].tolist(), "to": f["to"].tolist(), "rise": f["rise"]}
                                     for f in s["frames"]]} if s["frames"] else {})} for s in entries]
     ropes = dict(scene["ropes"] or check_table("ropes", {}, SCENE.keys["ropes"]))

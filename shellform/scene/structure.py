@@ -103,7 +103,10 @@ def build_structure_and_rods(scene: dict, nodes: np.ndarray | None = None):
         s.add_point_mass(np.arange(len(nodes)), scene["masses"]["node_mass"])  # not on joint copies
     for i, (sup, at) in enumerate(zip(scene["supports"], scene_support_nodes(scene, np.asarray(nodes)))):
         with scene_error_at(support_key(scene, i)):
-            s.fix(at, sup["dofs"])
+            if sup["slide"]:
+                s.slide(at, sup["slide"], sup["slide_direction"], sup["slide_stiffness_ratio"])
+            else:
+                s.fix(at, sup["dofs"])
     for i, p in enumerate(scene["prescribed"]):
         with scene_error_at(f"prescribed[{i}]"):
             s.prescribe(p["nodes"], p["direction"])

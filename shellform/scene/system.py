@@ -66,6 +66,7 @@ def scene_system(scene: dict, structure: Structure, network=None) -> System:
     when the scene has rods.
     """
     from ..effects.loads import ConstantForce
+    from ..effects.sliding import sliding_effects
     from .rod_layouts import has_rods
 
     include = (scene["effects"] or {}).get("include") or default_effects(scene)
@@ -83,6 +84,7 @@ def scene_system(scene: dict, structure: Structure, network=None) -> System:
             effects += network.effects()
     elif "rods" in include:
         raise SceneError("effects.include", "lists 'rods' but the scene has no [rods] table")
+    effects += sliding_effects(structure)
     if "loads" in include:
         effects += nodal_load_effects(structure)
     if "gravity" in include:
