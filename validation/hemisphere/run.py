@@ -14,6 +14,9 @@ unless ``--force``):
 * ``routes``: the two construction routes (paths from the plane, relaxation on the net);
 * ``sensitivity``: n = 5, imperfection size and seed, penalty against shared joints;
 * ``dense``: n = 19 and 25 (and others when asked with ``--dense``), both modes;
+* ``fig7``: the paper's whole study (its Fig. 7): first snap and maximum force for
+  n in {5, 7, 9, 11, 19, 29, 39, 49}, both modes, at 1 mm (``--fig7-ns`` and
+  ``--modes`` pick a part, e.g. one process per mode on two cores);
 * ``render``: recompute the four cases with configuration pictures (n = 5, 11 at 1 mm).
 
 Writes ``report.md``, ``validation.json`` and the figures next to this file.
@@ -48,6 +51,7 @@ from shellform.io.table import save_figure  # noqa: E402
 
 RUNS = HERE / "runs"
 NS = (5, 7, 9, 11)
+FIG7_NS = (5, 7, 9, 11, 19, 29, 39, 49)
 MODES = ("I", "II")
 DLS_MM = (2.0, 1.5, 1.0, 0.5)
 
@@ -88,8 +92,13 @@ def run_route(n, dl_mm, force=False):
     return out
 
 
-def studies(which, force, dense_ns):
+def studies(which, force, dense_ns, fig7_ns=FIG7_NS, modes=MODES):
     RUNS.mkdir(exist_ok=True)
+    if which == "fig7":
+        # sizes in increasing order, so that a stopped study keeps every smaller size
+        for n in fig7_ns:
+            for mode in modes:
+                run_indentation(n, mode, 1.0, force)
     if which in ("main", "all"):
         for mode in MODES:
             for n in NS:
@@ -195,6 +204,99 @@ def figure_trends(main, path):
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
     plt.close(fig)
+
+
+def figure_fig7(runs, path):
+    """The paper's Fig. 7: first snap and maximum force against n, both modes."""
+    plt = _plt()
+    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.4))
+    for mode, marker, colour in zip(MODES, ("o", "s"), ("tab:blue", "tab:orange")):
+        level = PUBLISHED[mode]["snap_dD_over_R"][0]
+        a.axhspan(level - TOLERANCE, level + TOLERANCE, color=colour, alpha=0.08, lw=0)
+        a.axhline(level, color=colour, ls="--", lw=0.8, label=f"paper, mode {mode} (about {level:g})")
+        ns = [n for n in FIG7_NS if runs[mode].get(n)]
+        if not ns:
+            continue
+        first = [runs[mode][n]["thresholds"][0] if runs[mode][n]["thresholds"] else np.nan for n in ns]
+        fmax = np.array([runs[mode][n]["max_force"] for n in ns])
+        a.plot(ns, first, marker=marker, color=colour, label=f"computed, mode {mode}")
+        b.plot(ns, fmax, marker=marker, color=colour, ls="none", label=f"mode {mode}")
+        if len(ns) >= 2:
+            coef = np.polyfit(ns, fmax, 1)
+            x = np.array([min(FIG7_NS), max(FIG7_NS)])
+            b.plot(x, np.polyval(coef, x), color=colour, lw=0.8, label=f"{coef[0]:.2f} n {coef[1]:+.1f}")
+    a.set_xlabel("n (rods per direction)")
+    a.set_ylabel(r"first snap $\Delta D/R$")
+    a.set_ylim(0.8, 1.8)
+    a.legend(fontsize=7)
+    b.set_xlabel("n (rods per direction)")
+    b.set_ylabel(r"max $-\sum F_z R^2/EI$")
+    b.legend(fontsize=7)
+    for ax in (a, b):
+        ax.set_xticks(FIG7_NS)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=110)
+    plt.close(fig)
+
+
+def fig7_section(runs):
+    """The report's lines and the JSON record of the Fig. 7 study (the sizes that have run)."""
+    lines = ["## The paper's Fig. 7: first snap and maximum force for n = 5 to 49", "",
+             "`python validation/hemisphere/run.py --study fig7` (each run cached in `runs/`; "
+             "`--fig7-ns 29,39 --modes I` runs a part, e.g. one process per mode). Voronoi length 1 mm, "
+             "as in the paper. Wall time: the whole path of one run (build, pre-stress, continuation and "
+             "snaps), one process per core on 2 shared cores.", "",
+             "![Fig. 7](fig7.png)", "",
+             "| n | DOFs | mode I: first snap dD/R | max force F R^2/EI | wall [s] "
+             "| mode II: first snap dD/R | max force F R^2/EI | wall [s] |",
+             "|---|---|---|---|---|---|---|---|"]
+    record = {"n": list(FIG7_NS), "runs": {}, "missing": []}
+    total = 0.0
+    for n in FIG7_NS:
+        cells, dofs = [], None
+        for mode in MODES:
+            r = runs[mode].get(n)
+            if r is None:
+                cells += ["not run", "", ""]
+                record["missing"].append(f"mode {mode}, n = {n}")
+                continue
+            dofs = r["n_dof"]
+            first = r["thresholds"][0] if r["thresholds"] else None
+            cells += [fmt(first), f"{r['max_force']:.1f}", f"{r['total_s']:.0f}"]
+            total += r["total_s"]
+            record["runs"].setdefault(mode, {})[str(n)] = {
+                "n_dof": r["n_dof"], "first_snap": first, "thresholds": r["thresholds"],
+                "max_force": r["max_force"], "wall_time_s": r["total_s"], "success": r["success"]}
+        lines.append(f"| {n} | {dofs if dofs is not None else ''} | " + " | ".join(cells) + " |")
+    record["total_wall_time_s"] = total
+    lines += ["", f"Sum of the wall times of the runs in the table: {total / 60:.1f} min."]
+    if record["missing"]:
+        lines.append(f"Not run: {', '.join(record['missing'])}.")
+    lines.append("")
+    for mode in MODES:
+        rs = {n: r for n, r in runs[mode].items() if r is not None and r["thresholds"]}
+        if len(rs) < 2:
+            continue
+        ns = np.array(sorted(rs), dtype=float)
+        first = np.array([rs[n]["thresholds"][0] for n in sorted(rs)])
+        fmax = np.array([rs[n]["max_force"] for n in sorted(rs)])
+        coef = np.polyfit(ns, fmax, 1)
+        r2 = 1 - np.sum((fmax - np.polyval(coef, ns)) ** 2) / np.sum((fmax - fmax.mean()) ** 2)
+        dense = [n for n in sorted(rs) if n >= 19]
+        flat = np.array([rs[n]["thresholds"][0] for n in dense])
+        level = PUBLISHED[mode]["snap_dD_over_R"][0]
+        text = (f"* mode {mode}: first snap {first.min():.3f} to {first.max():.3f} over n = "
+                f"{', '.join(str(int(v)) for v in ns)} (paper: about {level:g})")
+        if len(dense) >= 2:
+            text += f"; over n = {dense[0]}..{dense[-1]} it spans {flat.max() - flat.min():.3f}"
+        text += f"; max force = {coef[0]:.2f} n {coef[1]:+.1f} (R^2 = {r2:.4f})"
+        lines.append(text)
+        record.setdefault("trends", {})[mode] = {
+            "first_snap_range": [float(first.min()), float(first.max())],
+            "first_snap_span_n_ge_19": float(flat.max() - flat.min()) if len(dense) >= 2 else None,
+            "max_force_linear_fit": {"slope": float(coef[0]), "intercept": float(coef[1]), "r2": float(r2)}}
+    lines.append("")
+    return lines, record
 
 
 def figure_convergence(conv, path_curves, path_cost):
@@ -426,6 +528,11 @@ def report(dense_ns):
                      f"first snap from {min(fs):.3f} to {max(fs):.3f} (spread {max(fs) - min(fs):.3f})")
     lines.append("")
 
+    fig7 = {mode: {n: load(n, mode, 1.0) for n in FIG7_NS} for mode in MODES}
+    figure_fig7(fig7, HERE / "fig7.png")
+    fig7_lines, fig7_record = fig7_section(fig7)
+    lines += fig7_lines
+
     figure_construction(11, HERE / "construction.png")
     lines += ["## Construction: the net, the footprint, and the two routes to the pre-stressed shape", "",
               "![construction](construction.png)", "",
@@ -529,6 +636,7 @@ def report(dense_ns):
         "runs": {m: {str(n): _brief(r) for n, r in main[m].items() if r} for m in MODES},
         "dense": {m: {str(n): _brief(r) for n, r in dense[m].items() if r} for m in MODES},
         "trends": trends,
+        "fig7": fig7_record,
         "routes": {str(n): r for n, r in routes.items()},
         "convergence": convergence,
         "sensitivity": [{"mode": m, "imperfection": i, "seed": s, "joints": j, **_brief(r)} for m, i, s, j, r in sens],
@@ -583,14 +691,20 @@ NOTES = [
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--study", default="all", choices=("all", "main", "convergence", "routes", "sensitivity", "dense", "render"))
+    p.add_argument("--study", default="all",
+                   choices=("all", "main", "convergence", "routes", "sensitivity", "dense", "render", "fig7"))
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--force", action="store_true", help="recompute stored runs")
     p.add_argument("--dense", default="19,25", help="comma-separated dense n values (default 19,25)")
+    p.add_argument("--fig7-ns", default=",".join(map(str, FIG7_NS)),
+                   help="comma-separated n values of the fig7 study (default the paper's)")
+    p.add_argument("--modes", default="I,II", help="comma-separated modes of the fig7 study (default I,II)")
     args = p.parse_args(argv)
     dense_ns = tuple(int(v) for v in args.dense.split(",") if v)
+    fig7_ns = tuple(int(v) for v in args.fig7_ns.split(",") if v)
+    modes = tuple(m for m in args.modes.split(",") if m)
     if not args.report_only:
-        studies(args.study, args.force, dense_ns)
+        studies(args.study, args.force, dense_ns, fig7_ns, modes)
     report(dense_ns)
 
 
