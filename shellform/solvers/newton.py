@@ -279,6 +279,10 @@ class _Stepper:
         system, o = self.system, self.o
         rf = r[system.free]
         phi0 = system.energy(q, self.lam) if o.merit == "energy" else 0.5 * norm**2
+        # the energy is a sum of member terms, each known to the rounding of its force times the
+        # rounding of the coordinates: a change below that cannot rank two states
+        noise = (np.finfo(float).eps * self.size * float(np.sum(np.abs(system.forces_in_play(q, self.lam)[system.free])))
+                 if o.merit == "energy" else 0.0)
         self.singular = True
         for shift in _shift_sequence(K, norm, self.size):
             try:
@@ -291,13 +295,13 @@ class _Stepper:
             if slope >= 0.0:
                 continue  # not a descent direction of the energy: shift further
             projection = (lambda q=q, p=p: StretchProjection(system, q, p, cache=self.cache)) if o.project else None
-            q_try, r_try, norm_try = self.line_search(q, p, phi0, slope, norm, projection)
+            q_try, r_try, norm_try = self.line_search(q, p, phi0, slope, norm, projection, noise)
             if q_try is not None:
                 self.regularised += int(shift > 0.0)
                 return q_try, r_try, norm_try
         return None
 
-    def line_search(self, q, p, phi0, slope, norm, projection=None):
+    def line_search(self, q, p, phi0, slope, norm, projection=None, noise: float = 0.0):
         """Backtracking (Armijo) along ``p``; returns (q, r, |r|) or (None, None, None).
 
         ``projection`` (a factory of a :class:`StretchProjection`): once the
@@ -329,9 +333,9 @@ class _Stepper:
             if not np.isfinite(phi):
                 return False
             armijo = phi <= phi0 + 1e-4 * alpha * slope
-            # close to a minimum the energy changes less than its round-off and
-            # cannot rank steps; the residual norm still can
-            flat = merit == "energy" and abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope))
+            # close to a minimum the energy changes less than its round-off (``noise``, from the
+            # forces in play) and cannot rank steps; the residual norm still can
+            flat = merit == "energy" and abs(phi - phi0) <= 1e3 * (eps * (abs(phi0) + abs(slope)) + noise)
             if not (armijo or flat):
                 return False
             if c[1] is None:
