@@ -62,6 +62,7 @@ PRELOAD = (
     "scipy.sparse.linalg",
     "h5py",
     "qdldl",
+    "cvxopt.cholmod",
     "matplotlib.figure",
     "matplotlib.backends.backend_agg",
     "mpl_toolkits.mplot3d",
