@@ -9,8 +9,11 @@ several repeats, all in one run.
 
 ``tangent``: the pre-stressed hemispherical gridshell of the indentation
 benchmark (``--hemisphere-n`` rods per direction, apex prescribed, state
-perturbed so that every term is active): each effect's Hessian values, the
-free tangent as the continuation assembles it (``System.tangent_free``), and
+perturbed so that every term is active): each effect's Hessian values as the
+tangent takes them (the upper triangles of the element blocks where the
+effect gives them), the bending and twisting together in one pass
+(``hinges``, as the tangent evaluates them), the free tangent as the
+continuation assembles it (``System.tangent_free``), and
 a numeric refactorisation of that tangent with the symbolic analysis kept
 (CHOLMOD Cholesky and QDLDL LDL^T, each reusing its previous factor), best of
 ``--repeat``; the ratio tangent / Cholesky refactorisation is the figure of
@@ -75,12 +78,26 @@ def best_of(fn, repeat):
     return min(times), out
 
 
+def tangent_values(e, q):
+    """An effect's Hessian values as the free tangent takes them: upper triangles where the effect gives them."""
+    return e.hessian_values(q) if e.hessian_upper_pattern() is None else e.hessian_upper_values(q)
+
+
+def summed_hinge_values(system, q):
+    """The bending and twisting Hessian values of the rod hinges, summed in one pass as the tangent takes them."""
+    from shellform.effects.rod_hinge import HingeEffect
+
+    hinges = [e for e in system.effects if isinstance(e, HingeEffect)]
+    return lambda: type(hinges[0]).summed_hessian_upper_values(hinges, q)
+
+
 def run(n, edges_per_cell, repeat):
     system, q = dome_network(n, edges_per_cell)
     row = {"rods": 2 * n, "dof": system.n_dof, "free": system.n_free}
     for e in system.effects:
         if e.name in ("rod_stretch", "rod_bend", "rod_twist", "joints"):
-            row[e.name] = best_of(lambda: (e.gradient(q), e.hessian_values(q)), repeat)[0]
+            row[e.name] = best_of(lambda: (e.gradient(q), tangent_values(e, q)), repeat)[0]
+    row["hinges"] = best_of(summed_hinge_values(system, q), repeat)[0]
     row["assembly"], K = best_of(lambda: (system.residual(q), system.tangent_free(q))[1], repeat)
     row["nnz"] = K.nnz
     rhs = -system.residual(q)[system.free]
@@ -109,7 +126,8 @@ def hemisphere_tangent(n: int, repeat: int) -> dict:
     row = {"n": n, "free": system.n_free}
     for e in system.effects:
         if e.name in ("rod_stretch", "rod_bend", "rod_twist", "joints"):
-            row[e.name] = best_of(lambda: e.hessian_values(q), repeat)[0]
+            row[e.name] = best_of(lambda: tangent_values(e, q), repeat)[0]
+    row["hinges"] = best_of(summed_hinge_values(system, q), repeat)[0]
     row["tangent"], K = best_of(lambda: system.tangent_free(q), repeat)
     row["nnz"] = K.nnz
     # numeric refactorisations: the symbolic analysis of the previous factor is kept
@@ -164,17 +182,20 @@ def main():
     parser.add_argument("--hemisphere-n", type=int, nargs="*", default=[5])
     args = parser.parse_args()
     if "assembly" in args.part:
-        head = ["rods", "dof", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "assembly", "direct", "ldl"]
+        head = ["rods", "dof", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "hinges", "assembly",
+                "direct", "ldl"]
         print(" ".join(f"{h:>11}" for h in head) + "   (times in s: gradient + Hessian values per effect;"
+              " hinges = bending and twisting Hessian values in one pass;"
               " assembly = residual + free tangent; solve = factorise + solve)")
         for n in args.rods:
             r = run(n, args.edges_per_cell, args.repeat)
             print(" ".join(f"{r[h]:11d}" if isinstance(r[h], (int, np.integer)) else f"{r[h]:11.4f}" for h in head),
                   flush=True)
     if "tangent" in args.part:
-        head = ["n", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "tangent", "cholesky", "ldl",
-                "ratio"]
-        print(" ".join(f"{h:>11}" for h in head) + "   (times in ms: Hessian values per effect; tangent = free tangent;"
+        head = ["n", "free", "nnz", "rod_stretch", "rod_bend", "rod_twist", "joints", "hinges", "tangent", "cholesky",
+                "ldl", "ratio"]
+        print(" ".join(f"{h:>11}" for h in head) + "   (times in ms: Hessian values per effect; hinges = bending and"
+              " twisting in one pass; tangent = free tangent;"
               " numeric refactorisation; ratio = tangent / Cholesky refactorisation)")
         for n in args.hemisphere_n:
             r = hemisphere_tangent(n, args.repeat)

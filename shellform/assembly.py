@@ -131,6 +131,7 @@ class System:
         full_to_ff[in_ff] = np.arange(self._ff.nnz)
         self._ff_slot = full_to_ff[full.slot]
         full.rows = None
+        self._upper = self._upper_scatter(free_index)
         self._measures = None  # pattern of the held measures' Jacobian, built on first use
 
     # -- construction --------------------------------------------------------------
@@ -167,6 +168,73 @@ class System:
         rows.append(diag)
         cols.append(diag)
         return np.concatenate(rows), np.concatenate(cols)
+
+    def _upper_scatter(self, free_index: np.ndarray):
+        """The map from the effects' values to the free tangent's data, when some effect gives upper triangles.
+
+        The values of :meth:`tangent_free` are laid out in one buffer, a slice
+        per group: the effects with equal upper patterns
+        (:meth:`Effect.hessian_upper_pattern`) summed by their class, the
+        others' full Hessian values (summed over effects sharing a pattern).
+        A constant 0/1 CSR matrix ``S`` (one row per entry of the free
+        pattern, one column per value) sums them into the CSR data: a mirrored
+        upper value sits in the rows of its entry and of the transposed entry,
+        and values in a row or column of a constrained DOF in none. Returns
+        ``(groups, S, buffer)`` with ``groups`` the ``(kind, effect indices,
+        slice)`` of each part, or None when no effect has an upper pattern.
+        """
+        upper = [e.hessian_upper_pattern() for e in self.effects]
+        if all(u is None for u in upper):
+            return None
+        n_f = self.free.size
+        ff = self._ff
+        keys = ff.indices.astype(np.int64)
+        keys += np.repeat(np.arange(n_f, dtype=np.int64) * n_f, np.diff(ff.indptr))  # ascending (canonical CSR)
+        groups, rows, cols = [], [], []
+        count = 0
+        for k, e in enumerate(self.effects):
+            if upper[k] is not None:
+                r, c, mirrored = upper[k]
+                shared = next((g for g in groups if g[0] == "upper" and len(upper[g[1][0]][0]) == len(r)
+                               and _same_pattern(upper[g[1][0]], upper[k])), None)
+                if shared is not None:
+                    shared[1].append(k)
+                    continue
+                fr, fc = free_index[r], free_index[c]
+                keep = (fr >= 0) & (fc >= 0)
+                index = np.flatnonzero(keep)
+                twice = np.flatnonzero(keep & np.asarray(mirrored, dtype=bool))
+                slots = []
+                for a, b, sel in ((fr, fc, index), (fc, fr, twice)):
+                    key = a[sel] * n_f + b[sel]
+                    pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+                    if np.any(keys[pos] != key):
+                        raise ModelError(f"effect {e.name!r}: its upper Hessian pattern has entries outside its "
+                                         f"Hessian pattern")
+                    slots.append(pos)
+                rows += slots
+                cols += [count + index, count + twice]
+                groups.append(["upper", [k], slice(count, count + len(r))])
+                count += len(r)
+            else:
+                start, end = self._ranges[k]
+                if end == start:
+                    continue
+                shared = next((g for g in groups if g[0] == "full" and self._ranges[g[1][0]] == (start, end)), None)
+                if shared is not None:
+                    shared[1].append(k)
+                    continue
+                slot = self._ff_slot[start:end]
+                index = np.flatnonzero(slot < ff.nnz)
+                rows.append(slot[index])
+                cols.append(count + index)
+                groups.append(["full", [k], slice(count, count + end - start)])
+                count += end - start
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(ff.nnz, count)).tocsr()
+        S.sum_duplicates()
+        groups = [(kind, tuple(ks), sl) for kind, ks, sl in groups]
+        return groups, S, np.zeros(count)
 
     def _group_values(self, values: dict) -> np.ndarray:
         """The values of all triplets from values by effect index (summed over effects sharing a pattern; zero
@@ -256,7 +324,24 @@ class System:
         return self._full.matrix(np.concatenate([vals, np.zeros(self.n_dof)]))
 
     def tangent_free(self, q: np.ndarray) -> sp.csr_matrix:
-        """Tangent restricted to the free DOFs (CSR), assembled directly."""
+        """Tangent restricted to the free DOFs (CSR), assembled directly.
+
+        Effects that give the upper triangles of their element blocks
+        (:meth:`Effect.hessian_upper_pattern`) compute and scatter only those;
+        the scatter fills the free pattern's data with one product by a
+        constant 0/1 matrix (:meth:`_upper_scatter`).
+        """
+        if self._upper is not None:
+            groups, S, buffer = self._upper
+            for kind, ks, sl in groups:
+                if kind == "upper":
+                    effects = [self.effects[k] for k in ks]
+                    type(effects[0]).summed_hessian_upper_values(effects, q, out=buffer[sl])
+                else:
+                    buffer[sl] = self.effects[ks[0]].hessian_values(q)
+                    for k in ks[1:]:
+                        buffer[sl] += self.effects[k].hessian_values(q)
+            return sp.csr_matrix((S @ buffer, self._ff.indices, self._ff.indptr), shape=self._ff.shape)
         return self._free_matrix({k: e.hessian_values(q) for k, e in enumerate(self.effects)
                                   if self._ranges[k][1] > self._ranges[k][0]})
 

@@ -7,6 +7,8 @@ members that carry it. It exposes
 * ``gradient(q) -> ndarray (n_dof,)``
 * ``hessian_pattern() -> (rows, cols)``: fixed for the life of the effect,
 * ``hessian_values(q) -> vals``: in the order of ``hessian_pattern``,
+* optionally ``hessian_upper_pattern()`` and ``hessian_upper_values(q)``:
+  the upper triangles of symmetric element blocks only,
 
 so that a :class:`~shellform.assembly.System` computes the sparsity pattern
 once and only scatters values afterwards. ``hessian(q)`` returns the COO
@@ -69,6 +71,37 @@ class Effect:
     def hessian_values(self, q: np.ndarray) -> np.ndarray:
         """Hessian entries in the order of :meth:`hessian_pattern`."""
         return np.zeros(0)
+
+    def hessian_upper_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The Hessian by the entries on and above the diagonal of its element blocks, or None (the default).
+
+        An effect whose Hessian is made of symmetric element blocks can list
+        each block's upper triangle only: half the values to compute and to
+        scatter. Returns ``(rows, cols, mirrored)``: the entry of each value,
+        and whether it also stands for its transpose (an entry off its block's
+        diagonal; one that lands on the global diagonal, from a DOF repeated
+        in a block, then counts twice). The System assembles such an effect's
+        share of the tangent from :meth:`hessian_upper_values`; the full
+        :meth:`hessian_pattern` and :meth:`hessian_values` stay the reference
+        for everything else.
+        """
+        return None
+
+    def hessian_upper_values(self, q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Hessian values in the order of :meth:`hessian_upper_pattern`, written to ``out`` when given."""
+        raise NotImplementedError(f"effect {self.name!r} has no upper-triangle Hessian values")
+
+    @classmethod
+    def summed_hessian_upper_values(cls, effects, q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The sum of the :meth:`hessian_upper_values` of ``effects``, which share one upper pattern.
+
+        Called on the class of the first effect; a class whose effects share
+        work (the bending and twisting of the same rod hinges) overrides it.
+        """
+        out = effects[0].hessian_upper_values(q, out)
+        for e in effects[1:]:
+            out += e.hessian_upper_values(q)
+        return out
 
     def hessian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hessian as COO triplets ``(rows, cols, vals)``."""

@@ -33,6 +33,7 @@ import numpy as np
 from .rod_hinge import (
     HingeEffect,
     binormal_energy_derivatives,
+    binormal_energy_hessian,
     curvature_binormal_jacobian,
     material_curvature_term,
     material_curvature_value,
@@ -100,32 +101,37 @@ class RodBending(HingeEffect):
     def _local(self, q, order):
         t0, t1, l0, l1, theta = self._geometry(q)
         k = self.k
-        n = len(k)
-        H = None
-        if order == 2:
-            # the material frames enter only through the terms of curved and anisotropic hinges
-            H = np.empty((8, 8, n))
-            H[6:] = 0.0
-            H[:6, 6:] = 0.0
-        res = binormal_energy_derivatives(t0, t1, l0, l1, order, k, None if H is None else H[:6, :6])
+        res = binormal_energy_derivatives(t0, t1, l0, l1, order, k)
         e = res[0] + self._const
         if order == 0:
             if self.curved.size or self.aniso.size:
                 self._add_frame_energies(t0, t1, theta, e)
             return (k * e,)
-        g = np.zeros((8, n))
+        g = np.zeros((8, len(k)))
         g[:6] = res[1]
+        for sub, es, gz, _ in self._frame_terms(t0, t1, l0, l1, theta, hessian=False):
+            e[sub] += es
+            g[:, sub] += k[sub] * gz
+        return k * e, g
+
+    def add_hessian(self, q, acc):
+        t0, t1, l0, l1, theta = self._geometry(q)
+        binormal_energy_hessian(acc, self.k)
+        for sub, _, _, Hz in self._frame_terms(t0, t1, l0, l1, theta, hessian=True):
+            acc.whole.append((sub, self.k[sub] * Hz))
+
+    hessian_slots = 2
+
+    def _frame_terms(self, t0, t1, l0, l1, theta, hessian):
+        """The material-frame terms of the curved and of the anisotropic hinges: for each set, the hinges, their
+        energies, gradients (8, n) over ``z`` and (if ``hessian``) Hessians (8, 8, n), before the factor ``k``."""
         for sub, terms in ((self.curved, self._curvature_terms), (self.aniso, self._anisotropy_terms)):
             if sub.size:
                 T0, T1 = t0[:, sub].T, t1[:, sub].T
                 es, gs, Hs = terms(T0, T1, curvature_binormal_jacobian(T0, T1), theta[:, sub].T)
                 gz, Hz = project_to_edges(t0[:, sub], t1[:, sub], l0[sub], l1[sub], gs.T,
-                                          None if H is None else Hs.transpose(1, 2, 0))
-                e[sub] += es
-                g[:, sub] += k[sub] * gz
-                if H is not None:
-                    H[:, :, sub] += k[sub] * Hz
-        return k * e, g, H
+                                          Hs.transpose(1, 2, 0) if hessian else None)
+                yield sub, es, gz, Hz
 
     def _add_frame_energies(self, t0, t1, theta, e) -> None:
         """Add the material-frame terms of the curved and anisotropic hinges to the energies ``e``."""

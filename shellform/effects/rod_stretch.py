@@ -15,6 +15,10 @@ import numpy as np
 from .axial import AxialBar
 
 
+#: the upper triangle of a 3 x 3 block, as flat indices
+_UPPER = np.array([0, 1, 2, 4, 5, 8])
+
+
 class RodStretching(AxialBar):
     """Axial stretching of all rod edges at once.
 
@@ -38,6 +42,7 @@ class RodStretching(AxialBar):
         self._component_major()
 
     def _component_major(self) -> None:
+        self._upper_pattern = None
         self._dofs_t = np.ascontiguousarray(self.dofs.T)  # (6, m)
         k, m = self._dofs_t.shape
         self._pattern = (np.broadcast_to(self._dofs_t[:, None, :], (k, k, m)).ravel(),
@@ -52,6 +57,31 @@ class RodStretching(AxialBar):
         """Indices into :meth:`hessian_pattern` of the entries of ``members`` (36 each, in block order)."""
         m = len(self.conn)
         return (np.arange(36)[None, :] * m + np.asarray(members, dtype=np.int64)[:, None]).ravel()
+
+    def hessian_upper_pattern(self):
+        """``K`` by its upper triangle on both nodes' diagonal blocks, ``-K`` in full between them (21 entries)."""
+        if self._upper_pattern is None:
+            d = self._dofs_t
+            tri = [(i, j) for i in range(3) for j in range(i, 3)]
+            pairs = np.array(tri + [(i, 3 + j) for i in range(3) for j in range(3)] + [(3 + i, 3 + j) for i, j in tri])
+            mirrored = np.repeat(pairs[:, 0] != pairs[:, 1], d.shape[1])
+            self._upper_pattern = (d[pairs[:, 0]].ravel(), d[pairs[:, 1]].ravel(), mirrored)
+        return self._upper_pattern
+
+    def hessian_upper_values(self, q, out=None):
+        x = q[self._dofs_t]
+        d = x[3:] - x[:3]
+        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        N, k = self._force(length)
+        s = N / length
+        m = length.size
+        out = np.empty((21, m)) if out is None else out.reshape(21, m)
+        # -K = (s - k) n n^T - s I
+        np.multiply(d[:, None], ((s - k) / (length * length)) * d, out=out[6:15].reshape(3, 3, m))
+        out[6:15:4] -= s
+        np.negative(np.take(out[6:15], _UPPER, axis=0), out=out[0:6])
+        out[15:21] = out[0:6]
+        return out.ravel()
 
     def hessian_values(self, q):
         """``[[K, -K], [-K, K]]`` with ``K = (EA / L - N / l) n n^T + (N / l) I`` (see :mod:`~shellform.effects.axial`)."""

@@ -47,32 +47,31 @@ class RodTwisting(HingeEffect):
         theta = q[self.stencil[:, 9:]]
         return theta[:, 1] - theta[:, 0] + self.frames.reference_twist(q)
 
-    def _local(self, q, order):
-        if order == 0:
-            return (self.k * (self.twist(q) - self.tau_bar) ** 2,)
+    def _twist_terms(self, q, order, acc=None):
         t0, t1, l0, l1, theta = self._geometry(q)
         stored = np.ascontiguousarray(self.frames.tangent.T)
         s0, s1 = (np.take(stored, self.hinge_edges[:, j], axis=1) for j in (0, 1))
-        terms = reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order)
+        terms = reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order,
+                                            *((None, None) if acc is None else (acc.T, acc.inv)))
         dtau = theta[1] - theta[0] + self.frames.twist + terms.beta - self.tau_bar
-        k2 = 2.0 * self.k
-        c = k2 * dtau
-        n = len(dtau)
-        g = np.empty((8, n))
+        return s0, terms, dtau
+
+    def _local(self, q, order):
+        if order == 0:
+            return (self.k * (self.twist(q) - self.tau_bar) ** 2,)
+        _, terms, dtau = self._twist_terms(q, 1)
+        c = 2.0 * self.k * dtau
+        g = np.empty((8, len(dtau)))
         np.multiply(c, terms.grad, out=g[:6])
         np.negative(c, out=g[6])
         g[7] = c
-        H = None
-        if order == 2:
-            # tau's gradient over z is (grad beta, -1, 1)
-            H = np.empty((8, 8, n))
-            reference_twist_hessian(t0, t1, s0, terms, c, self.k, out=H[:6, :6])
-            np.multiply(-k2, terms.grad, out=H[:6, 6])
-            np.multiply(k2, terms.grad, out=H[:6, 7])
-            H[6:, :6] = H[:6, 6:].swapaxes(0, 1)
-            H[6, 6] = H[7, 7] = k2
-            H[6, 7] = H[7, 6] = -k2
-        return self.k * dtau**2, g, H
+        return self.k * dtau**2, g
+
+    hessian_slots = 2
+
+    def add_hessian(self, q, acc):
+        s0, terms, dtau = self._twist_terms(q, 2, acc)
+        reference_twist_hessian(acc, s0, terms, 2.0 * self.k * dtau, self.k)
 
     def member_results(self, q):
         tau = self.twist(q)
