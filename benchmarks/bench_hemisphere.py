@@ -14,6 +14,10 @@
 
 ``--newton-only`` also runs the segment's implicit Euler with a Newton
 iteration (tangent and factorisation) in every step (``keep_factor=False``).
+``--factor-sizes 5 11 19 29 39 49`` times, at the pre-stressed state of each n, one rod
+tangent assembly, one LDL^T factorisation (fresh and numeric refactorisation on the kept
+analysis) and one solve, with the factor's fill: what one Newton iteration costs as the net
+gets denser.
 ``--chord-rates off 0.02 0.1 0.5 [--sizes 5 11] [--repeat 2]`` traces whole curves
 with the kept factor of implicit Euler (the dynamics through the snaps) off or
 at each chord rate, alternating fresh processes.
@@ -119,6 +123,49 @@ def chord_rate_curve(variant: str, n: int, dl: float) -> dict:
             "max_force": out["max_force"], "newton_iterations": out["newton_iterations"], "steps": out["steps"]}
 
 
+def factor_sizes(sizes, dl, repeat=3):
+    """Tangent, factorisation and solve times at the pre-stressed state of each n (medians of ``repeat``)."""
+    import statistics
+
+    import numpy as np
+    import qdldl
+
+    from shellform.solvers.factor_base import upper_csc
+
+    def median_time(f):
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            f()
+            times.append(time.perf_counter() - t0)
+        return statistics.median(times)
+
+    rows = []
+    print("| n | DOFs | free | tangent nnz | L nnz | tangent [ms] | fresh LDL^T [ms] | refactorisation [ms] "
+          "| solve [ms] |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for n in sizes:
+        model = build_hemisphere(HemisphereSpec(n, voronoi_length=dl))
+        pre = prestress_on_net(model)
+        system = indentation_system(model, pre, mode="I").system
+        K = system.tangent_free(pre.q)
+        U = upper_csc(K)
+        t_tangent = median_time(lambda: system.tangent_free(pre.q))
+        t0 = time.perf_counter()
+        solver = qdldl.Solver(U, upper=True)
+        t_fresh = time.perf_counter() - t0
+        t_update = median_time(lambda: solver.update(U, upper=True))
+        b = np.ones(K.shape[0])
+        t_solve = median_time(lambda: solver.solve(b))
+        row = {"n": n, "dof": system.n_dof, "free": K.shape[0], "tangent_nnz": int(K.nnz),
+               "L_nnz": int(solver.factors()[0].nnz), "tangent_ms": 1e3 * t_tangent, "fresh_ms": 1e3 * t_fresh,
+               "refactor_ms": 1e3 * t_update, "solve_ms": 1e3 * t_solve}
+        rows.append(row)
+        print(f"| {n} | {row['dof']} | {row['free']} | {row['tangent_nnz']} | {row['L_nnz']} | {row['tangent_ms']:.1f} "
+              f"| {row['fresh_ms']:.1f} | {row['refactor_ms']:.1f} | {row['solve_ms']:.2f} |", flush=True)
+    return rows
+
+
 def chord_rates(variants, sizes, dl, repeat):
     """Each variant in its own process, alternating; the table of the median trace times."""
     import statistics
@@ -153,6 +200,8 @@ def main(argv=None):
     p.add_argument("--sizes", type=int, nargs="+", default=[5, 11], help="n of the --chord-rates curves")
     p.add_argument("--repeat", type=int, default=2, help="runs of each --chord-rates variant")
     p.add_argument("--one-chord-rate", default=None, help=argparse.SUPPRESS)
+    p.add_argument("--factor-sizes", type=int, nargs="+", default=None,
+                   help="time one tangent, factorisation and solve at each of these n instead")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = p.parse_args(argv)
     if args.one_chord_rate is not None:
@@ -161,6 +210,8 @@ def main(argv=None):
     if args.chord_rates:
         chord_rates(args.chord_rates, args.sizes, args.dl, args.repeat)
         return {}
+    if args.factor_sizes:
+        return {"factor_sizes": factor_sizes(args.factor_sizes, args.dl * 1e-3)}
     out = {}
     if not args.skip_curve:
         out["mode_I_whole_curve"] = whole_curve(args.n, args.dl * 1e-3)

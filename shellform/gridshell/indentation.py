@@ -28,8 +28,10 @@ the path continues from there. Small random dead forces (an imperfection)
 break the symmetry of the net as in the paper; without them the symmetry is
 broken only by the critical mode chosen at each snap.
 
-Stability is counted from the pivot signs of an LDL^T factorisation
-(:func:`~shellform.solvers.stability.count_negative`), and critical modes come
+A point is stable where a Cholesky factorisation of its tangent succeeds;
+elsewhere the negative eigenvalues are counted from the pivot signs of an
+LDL^T factorisation (:func:`~shellform.gridshell.snapping.negative_count`,
+:func:`~shellform.solvers.stability.count_negative`), and critical modes come
 from shift-invert Lanczos about zero
 (:func:`~shellform.solvers.stability.smallest_eigenpair`): rod tangents in SI
 units span twelve orders of magnitude. The way through a snap is in
@@ -51,11 +53,10 @@ from ..assembly import System
 from ..effects.loads import ConstantForce
 from ..errors import ModelError
 from ..solvers.continuation import trace_path
-from ..solvers.stability import count_negative
 from .configurations import classify_configuration
 from .hemisphere import HemisphereModel, PrestressResult
 from .indentation_result import IndentationResult, Snap
-from .snapping import SettleOptions, locate_stability_loss, lowest_mode, settle
+from .snapping import SettleOptions, locate_stability_loss, lowest_mode, negative_count, settle
 
 MODES = ("I", "II")
 
@@ -254,7 +255,7 @@ class _Trace:
             # carry the rod frames along the path; stop at the first unstable point
             system.accept(pt.q)
             ts = time.perf_counter()
-            n_neg = count_negative(system.tangent_free(pt.q))
+            n_neg = negative_count(self.setup, system.tangent_free(pt.q))
             self.timings["stability"] += time.perf_counter() - ts
             if n_neg != 0:
                 last["unstable"] = (pt.mu, pt.q.copy(), n_neg)

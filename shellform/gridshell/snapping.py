@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..solvers.cholesky import CholeskyFactor
+from ..solvers.linear import SingularMatrixError
 from ..solvers.newton import solve_static
 from ..solvers.stability import count_negative, smallest_eigenpair
 
@@ -28,6 +30,23 @@ LINEAR_SOLVER = "ldl"
 #: over: from the middle of a bracket Newton converges in two or three, and next to the
 #: critical point, where it overshoots, thirty iterations only wander
 LOCATE_NEWTON = 8
+
+
+def negative_count(setup, K) -> int:
+    """Negative eigenvalues of the tangent ``K``: none where its Cholesky factorisation succeeds.
+
+    Most points of a path are stable, and a supernodal Cholesky factorisation
+    proves it at a fraction of the cost of the LDL^T whose pivot signs give
+    the count (:func:`~shellform.solvers.stability.count_negative`, used
+    where Cholesky fails): 0.45 s against 2.8-6 s at n = 39. The analysis is
+    kept on ``setup`` for the next tangent.
+    """
+    try:
+        F = CholeskyFactor(K, previous=getattr(setup, "_definite_factor", None), stored=True)
+    except SingularMatrixError:
+        return count_negative(K)
+    setup._definite_factor = F
+    return 0
 
 
 def lowest_mode(K) -> np.ndarray | None:
@@ -133,7 +152,7 @@ def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, optio
             frames = setup.model.network.frames.state()
             res = solve_static(system, q, mu=mu, merit="energy", max_iter=30, rtol=1e-9)
             iterations += res.iterations
-            if res.success and count_negative(system.tangent_free(res.q)) == 0:
+            if res.success and negative_count(setup, system.tangent_free(res.q)) == 0:
                 system.accept(res.q)
                 return res.q, iterations, "stable"
             setup.model.network.frames.restore(frames)
@@ -158,7 +177,7 @@ def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, optio
         else:
             return None, iterations, f"energy descent failed: {res.message}"
         K = system.tangent_free(q)
-        n_neg = count_negative(K)
+        n_neg = negative_count(setup, K)
         if n_neg == 0:
             return q, iterations, "stable"
         mode_free = lowest_mode(K)
@@ -191,7 +210,7 @@ def locate_stability_loss(setup, qa, mua, qb, mub, tol):
             res = solve_static(system, start, mu=mu, merit="energy", max_iter=30, linear_solver=LINEAR_SOLVER)
         if not res.success:
             return 0.5 * (lo[0] + hi[0]), hi[1], False
-        if count_negative(system.tangent_free(res.q)) == 0:
+        if negative_count(setup, system.tangent_free(res.q)) == 0:
             lo = (mu, res.q)
         else:
             hi = (mu, res.q)
