@@ -387,7 +387,13 @@ class TwistTerms(NamedTuple):
     parts: tuple | None
 
 
-def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2, T=None, inv=None) -> TwistTerms:
+def stored_twist_terms(s0, s1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the second triangle of the reference twist takes from the stored tangents alone:
+    ``s1 x s0``, ``s0 + s1`` (3, h) and ``s1 . s0`` (h,)."""
+    return _cross(s1, s0), s0 + s1, _dot(s1, s0)
+
+
+def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2, T=None, inv=None, stored=None) -> TwistTerms:
     """Change of the reference twist from the stored state, with its gradient over ``(e^0, e^1)``.
 
     ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
@@ -395,7 +401,8 @@ def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2, T=None, inv=Non
     ``Omega = 2 atan2(N, D)`` with ``N`` and ``D`` bilinear (first triangle) or
     linear (second) in the tangents. For ``order == 2`` the returned ``parts``
     feed :func:`reference_twist_hessian`. ``T`` (2, 3, h) and ``inv`` (2, h),
-    the tangents and inverse lengths stacked, are computed unless given.
+    the tangents and inverse lengths stacked, and ``stored``
+    (:func:`stored_twist_terms`) are computed unless given.
     """
     if T is None:
         T = np.stack((t0, t1))
@@ -404,7 +411,7 @@ def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2, T=None, inv=Non
     gN1 = np.empty_like(T)
     _cross(t1, s0, out=gN1[0])
     _cross(s0, t0, out=gN1[1])
-    gN2 = _cross(s1, s0)
+    gN2, gD2, s1s0 = stored_twist_terms(s0, s1) if stored is None else stored
     # N1 = s0 . (t0 x t1), D1 = 1 + t0 . t1 + s0 . (t0 + t1); N2 = s0 . (t1 x s1), D2 = 1 + (s0 + s1) . t1 + s1 . s0
     N1, N2 = _dot(t0, gN1[0]), _dot(t1, gN2)
     s0t1 = _dot(s0, t1)
@@ -413,8 +420,7 @@ def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2, T=None, inv=Non
     R1 = N1 * N1 + D1 * D1
     G1 = D1 * gN1
     G1 -= N1 * gD1
-    D2 = 1.0 + s0t1 + _dot(s1, t1) + _dot(s1, s0)
-    gD2 = s0 + s1
+    D2 = 1.0 + s0t1 + _dot(s1, t1) + s1s0
     R2 = N2 * N2 + D2 * D2
     G2 = D2 * gN2 - N2 * gD2
     beta = -2.0 * (np.arctan2(N1, D1) + np.arctan2(N2, D2))
@@ -462,11 +468,13 @@ def reference_twist_hessian(acc: HingeHessian, s0, terms: TwistTerms, c, k) -> N
     X, Y = acc.claim()
     X[:3] = 0.0
     # P1 G2 / l1 and 2 P1 (N2 gN2 + D2 gD2) / l1
-    V = np.stack((G2, N2 * gN2 + D2 * gD2))
-    V -= _dot(V, t1)[:, None] * t1
-    np.multiply(V[0], inv[1], out=X[3:])
+    np.multiply(G2 - _dot(G2, t1) * t1, inv[1], out=X[3:])
     np.multiply(b, -c / (R1 * R2), out=Y)
-    Y[3:] += V[1] * ((2.0 * c / (R2 * R2)) * inv[1])
+    gR2 = N2 * gN2
+    gR2 += D2 * gD2
+    gR2 -= _dot(gR2, t1) * t1
+    gR2 *= (2.0 * c / (R2 * R2)) * inv[1]
+    Y[3:] += gR2
     # off-diagonal block of the first triangle: P0 M P1 = M - t0 (M^T t0)^T - (M t1) t1^T + (t0^T M t1) t0 t1^T
     # for M = D1 [s0]_x + N1 I: M^T t0 = N1 t0 - D1 (s0 x t0), M t1 = N1 t1 - D1 (t1 x s0), t0^T M t1 = N1 (t0.t1 - D1)
     alpha = (2.0 * inv[0] * inv[1] / R1) * c
@@ -626,10 +634,9 @@ class HingeHessian:
     def __init__(self, h: int, slots: int):
         k = 4 + slots
         self.h = h
-        self.X = np.zeros((k, 6, h))
-        self.Y = np.zeros((k, 6, h))
-        self._X = np.empty((h, 6, k))  # hinge-major copies for the product
-        self._Y = np.empty((h, k, 6))
+        self._XY = np.zeros((2, k, 6, h))
+        self.X, self.Y = self._XY
+        self._hinge_major = np.empty((h, 2, k, 6))  # the copy the product reads
         self.U = np.empty((6, 6, h))
         self.R = _view(self.Y[:4], (8, 3, h))  # right vectors of the shared slots by blocks: 2 slot + block
         self.T = np.empty((2, 3, h))
@@ -678,9 +685,9 @@ class HingeHessian:
     def _position(self) -> np.ndarray:
         """``U`` (6, 6, h), all terms summed."""
         U = self.U
-        np.copyto(self._X, self.X.transpose(2, 1, 0))
-        np.copyto(self._Y, self.Y.transpose(2, 0, 1))
-        np.matmul(self._X, self._Y, out=U.transpose(2, 0, 1))
+        XY = self._hinge_major
+        np.copyto(XY, self._XY.transpose(3, 0, 1, 2))
+        np.matmul(XY[:, 0].transpose(0, 2, 1), XY[:, 1], out=U.transpose(2, 0, 1))
         flat = _view(U, (36, self.h))
         for block, first in enumerate((0, 21, 3)):
             flat[first:first + 15:7] += self.diagonal[block]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rod_hinge import HingeEffect, reference_twist_derivatives, reference_twist_hessian
+from .rod_hinge import HingeEffect, reference_twist_derivatives, reference_twist_hessian, stored_twist_terms
 from .base import LineResults
 from .rod_output import edge_means
 
@@ -41,18 +41,31 @@ class RodTwisting(HingeEffect):
         super().__init__(n_dof, frames, stencil, voronoi, GJ)
         self.GJ = np.asarray(GJ, dtype=float)
         self.tau_bar = np.asarray(natural_twist, dtype=float)
+        self._stored_cache = None
 
     def twist(self, q: np.ndarray) -> np.ndarray:
         """Integrated twist ``tau`` of every hinge at ``q``."""
         theta = q[self.stencil[:, 9:]]
         return theta[:, 1] - theta[:, 0] + self.frames.reference_twist(q)
 
+    def _stored(self):
+        """The stored tangents of both edges of every hinge (3, h) and :func:`stored_twist_terms` of them.
+
+        Kept while the frames keep their array of stored tangents: they
+        replace it, never change it in place, when they take a new state.
+        """
+        tangent = self.frames.tangent
+        if self._stored_cache is None or self._stored_cache[0] is not tangent:
+            stored = np.ascontiguousarray(tangent.T)
+            s0, s1 = (np.take(stored, self.hinge_edges[:, j], axis=1) for j in (0, 1))
+            self._stored_cache = (tangent, s0, s1, stored_twist_terms(s0, s1))
+        return self._stored_cache[1:]
+
     def _twist_terms(self, q, order, acc=None):
         t0, t1, l0, l1, theta = self._geometry(q)
-        stored = np.ascontiguousarray(self.frames.tangent.T)
-        s0, s1 = (np.take(stored, self.hinge_edges[:, j], axis=1) for j in (0, 1))
+        s0, s1, stored = self._stored()
         terms = reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order,
-                                            *((None, None) if acc is None else (acc.T, acc.inv)))
+                                            *((None, None) if acc is None else (acc.T, acc.inv)), stored)
         dtau = theta[1] - theta[0] + self.frames.twist + terms.beta - self.tau_bar
         return s0, terms, dtau
 
