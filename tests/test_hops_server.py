@@ -183,6 +183,37 @@ def test_formfind_circle_and_support_points(server):
     assert len(out["HangingNet"]) == len(hang.cells_dict["line"])
 
 
+def polyline(points, z=0.0):
+    pl = rhino3dm.Polyline(len(points) + 1)
+    for x, y in list(points) + [points[0]]:
+        pl.Add(x, y, z)
+    return rhino3dm.PolylineCurve(pl)
+
+
+L_SHAPE = [(0.0, 0.0), (6.0, 0.0), (6.0, 3.0), (3.0, 3.0), (3.0, 6.0), (0.0, 6.0)]
+COURT = [(0.8, 0.8), (2.0, 0.8), (2.0, 2.0), (0.8, 2.0)]
+
+
+def test_formfind_of_any_outline_with_a_hole_matches_the_scene(server):
+    """An L-shaped polyline with a square hole: meshed by gmsh at the edge length, hung from its outer
+    corners and the hole's rim, exactly as the scene of the same outline."""
+    body = request("FormFind", Boundary=polyline(L_SHAPE), Holes=[polyline(COURT)], EdgeLength=0.5,
+                   Supports="corners, hole_1", Slack=0.05)
+    status, text = post(server, body)
+    reply, out = outputs(text)
+    assert status == 200 and reply["errors"] == []
+    ref = sf.run(parse_scene({
+        "geometry": {"type": "polygon", "boundary": [[x, y, 0.0] for x, y in L_SHAPE],
+                     "holes": [{"points": [[x, y, 0.0] for x, y in COURT]}], "edge_length": 0.5},
+        "supports": [{"groups": ["corners", "hole_1"]}], "ropes": {"slack": 0.05}, "analysis": {"type": "mra"}}))
+    hang = ref.mesh("hanging.vtu")
+    np.testing.assert_allclose(np.array(out["HangingNet"]), lines_of(hang), rtol=0, atol=1e-12 * 6.0)
+    assert out["Converged"] == [True] and ref.summary["converged"]
+    shell = ref.mesh("inverted_shell.vtu")
+    assert out["Shell"][0].Faces.Count == sum(len(c) for c in shell.cells_dict.values()) > 0
+    assert "quad" in shell.cells_dict  # gmsh's quads, with the triangles recombination leaves
+
+
 def test_lengths_with_control_matches_the_scene(server):
     status, text = post(server, request("Lengths", **FORM, Control=True, Classes=2, LengthTolerance=0.002))
     reply, out = outputs(text)

@@ -208,8 +208,8 @@ def export_form(scene: dict, res, inv, out: Path) -> list[str]:
     support[net.supports] = 1.0
     height = inv.positions[:, 2] - inv.plane_z
     faces = net.grid.faces
-    if scene["output"]["meshes"] and len(faces) == 1:
-        write_surface(out / "inverted_shell.vtu", inv.positions, next(iter(faces.values())),
+    if scene["output"]["meshes"] and faces:
+        write_surface(out / "inverted_shell.vtu", inv.positions, list(faces.values()),
                       {"support": support, "height": height})
         files.append("inverted_shell.vtu")
     if "3dm" in scene["output"]["formats"]:

@@ -28,12 +28,39 @@ def _curve_samples(curve) -> np.ndarray:
                                                    np.linspace(d.T0, d.T1, _BOUNDARY_SAMPLES + 1))])
 
 
-def planform_geometry(curve, divisions, divisions_y) -> dict:
+def _closed_outline(curve, name: str, edge_length: float) -> np.ndarray:
+    """The corners of a closed outline: a polyline's own, or a curve divided into segments of half ``edge_length``."""
+    from ..io.rhino_import import curve_points
+
+    if not hasattr(curve, "PointAt"):
+        raise InputError(name, f"expected a curve, got a {type(curve).__name__}")
+    if not curve.IsClosed:
+        raise InputError(name, "is an open curve; an outline is closed")
+    pts = curve_points(curve, 0.5 * edge_length, name)
+    return pts[:-1] if len(pts) > 1 and np.allclose(pts[0], pts[-1]) else pts
+
+
+def _polygon_geometry(curve, holes, divisions, edge_length) -> dict:
+    """A planform of any outline (with holes), meshed by gmsh at ``edge_length`` (default: the outline's
+    perimeter over four times ``divisions``, the quads per side of a square)."""
+    if edge_length is None:
+        outline = _curve_samples(curve)
+        perimeter = float(np.linalg.norm(np.diff(outline, axis=0), axis=1).sum())
+        edge_length = perimeter / (4.0 * max(int(divisions), 1))
+    boundary = _closed_outline(curve, "Boundary", edge_length)
+    loops = [_closed_outline(h, f"Holes[{k}]", edge_length) for k, h in enumerate(holes or [])]
+    return {"type": "polygon", "boundary": boundary.tolist(), "holes": [{"points": h.tolist()} for h in loops],
+            "edge_length": float(edge_length), "elements": "quads"}
+
+
+def planform_geometry(curve, divisions, divisions_y, holes=None, edge_length=None) -> dict:
     """The planform keys of a closed boundary curve in a horizontal plane.
 
     A polyline through the four corners of its bounding box is a
     ``rectangle``; a curve on the ellipse inscribed in its bounding box a
-    ``disk`` (equal axes) or an ``ellipse``. Other outlines are refused.
+    ``disk`` (equal axes) or an ``ellipse``: structured grids of
+    ``divisions``. Any other outline, and any outline with holes or an
+    ``edge_length``, is a ``polygon`` meshed by gmsh (quads).
     """
     if not hasattr(curve, "PointAt"):
         raise InputError("Boundary", f"expected a curve, got a {type(curve).__name__}")
@@ -45,6 +72,8 @@ def planform_geometry(curve, divisions, divisions_y) -> dict:
     tol = _SHAPE_TOL * max(span, 1e-12)
     if hi[2] - lo[2] > tol:
         raise InputError("Boundary", "does not lie in a horizontal plane (z varies along it)")
+    if holes or edge_length is not None:
+        return _polygon_geometry(curve, holes, divisions, edge_length)
     z = float(lo[2])
     corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
     vertices = np.unique(np.round(pts[:, :2] / tol).astype(np.int64), axis=0)
@@ -65,17 +94,24 @@ def planform_geometry(curve, divisions, divisions_y) -> dict:
             if abs(a - b) <= tol:
                 return {"type": "disk", "radius": float(a), "n": divisions, "center": center}
             return {"type": "ellipse", "a": float(a), "b": float(b), "n": divisions, "center": center}
-    raise InputError("Boundary", "is neither a rectangle with sides along x and y, nor a circle, nor an ellipse "
-                     "with axes along x and y; other planforms are not supported yet")
+    if divisions_y is not None:
+        raise InputError("DivisionsY", "applies to a rectangular boundary only")
+    return _polygon_geometry(curve, holes, divisions, edge_length)
 
 
 # -- the form-finding inputs shared by FormFind, Lengths and Gridshell ---------------------------
 
 _FORM_INPUTS = (
-    Param("Boundary", "Curve", "Planform outline: a rectangle with sides along x and y, a circle or an ellipse "
-          "with axes along x and y, in a horizontal plane", "m"),
+    Param("Boundary", "Curve", "Planform outline in a horizontal plane: a rectangle with sides along x and y, a "
+          "circle or an ellipse with axes along x and y (a structured grid), or any other closed curve (meshed "
+          "by gmsh as quads)", "m"),
+    Param("Holes", "Curve", "Closed outlines of holes in the planform (meshed by gmsh)", "m", many=True,
+          optional=True),
     Param("Divisions", "Integer", "Quads per side of the grid (rectangle: along x; circle, ellipse: of the mapped "
-          "grid)", default=10, key="geometry.n_i"),
+          "grid; another outline: its perimeter over four times this is the edge length)", default=10,
+          key="geometry.n_i"),
+    Param("EdgeLength", "Number", "Target edge length of a gmsh-meshed outline (default: from Divisions)", "m",
+          optional=True, key="geometry.edge_length"),
     Param("DivisionsY", "Integer", "Rectangle: quads along y (default: Divisions)", optional=True,
           key="geometry.n_j"),
     Param("Supports", "Text", "Supported node sets of the grid, comma separated: boundary, corners, south, east, "
@@ -94,6 +130,8 @@ _FORM_INPUTS = (
 _FORM_KEYS = {p.key: p.name for p in _FORM_INPUTS if p.key}
 _FORM_KEYS["geometry.n"] = "Divisions"
 _FORM_KEYS["geometry"] = "Boundary"
+_FORM_KEYS["geometry.boundary"] = "Boundary"
+_FORM_KEYS["geometry.holes"] = "Holes"
 _FORM_KEYS["supports"] = "Supports"
 
 
@@ -111,7 +149,7 @@ def form_scene(v: dict, analysis: str) -> Built:
 
     if v["Boundary"] is None:
         raise InputError("Boundary", "is required")
-    geometry = planform_geometry(v["Boundary"], v["Divisions"], v["DivisionsY"])
+    geometry = planform_geometry(v["Boundary"], v["Divisions"], v["DivisionsY"], v["Holes"], v["EdgeLength"])
     supports = []
     groups = _text_list(v["Supports"])
     if groups:
@@ -123,8 +161,10 @@ def form_scene(v: dict, analysis: str) -> Built:
             checked = check_table("geometry", geometry, SCENE.keys["geometry"])
         except SceneError as exc:
             raise InputError(_FORM_KEYS.get(exc.key, "Divisions"), str(exc)) from None
-        grid = build_grid({k: (w.tolist() if isinstance(w, np.ndarray) else w) for k, w in checked.items()
-                           if w is not None})
+        plain = {k: (w.tolist() if isinstance(w, np.ndarray) else w) for k, w in checked.items() if w is not None}
+        if geometry["type"] == "polygon":  # as the scene passes it: the holes' points
+            plain["holes"] = [h["points"] for h in geometry["holes"]]
+        grid = build_grid(plain)
         spacing = np.linalg.norm(np.diff(grid.nodes[grid.quads[:, :2]], axis=1), axis=2).min()
         supports.append({"nodes": nearest_nodes(grid.nodes, v["SupportPoints"], 0.25 * spacing, "SupportPoints")})
     if not supports:
@@ -140,7 +180,8 @@ def form_scene(v: dict, analysis: str) -> Built:
     return Built(scene, dict(_FORM_KEYS))
 
 
-def _rhino_mesh(points, quads):
+def _rhino_mesh(points, *faces):
+    """A Rhino mesh of the points and the face arrays (quads, triangles)."""
     import rhino3dm
 
     mesh = rhino3dm.Mesh()
@@ -148,8 +189,9 @@ def _rhino_mesh(points, quads):
     add_vertex, add_face = mesh.Vertices.AddPoint3d, mesh.Faces.AddFace
     for x, y, z in np.asarray(points, dtype=float).tolist():
         add_vertex(x, y, z)  # double precision
-    for f in np.asarray(quads, dtype=np.int64).tolist():
-        add_face(*f)
+    for block in faces:
+        for f in np.asarray(block, dtype=np.int64).tolist():
+            add_face(*f)
     mesh.Normals.ComputeNormals()
     return mesh
 
@@ -176,7 +218,7 @@ def _form_reply(result, v, context) -> dict:
     }
     if "inverted_shell.vtu" in result.files:
         shell = result.mesh("inverted_shell.vtu")
-        out["Shell"] = _rhino_mesh(shell.points, shell.cells_dict["quad"])
+        out["Shell"] = _rhino_mesh(shell.points, *shell.cells_dict.values())
     return out
 
 

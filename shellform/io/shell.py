@@ -26,16 +26,18 @@ def face_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def surface_mesh(points, faces, point_data: Mapping[str, np.ndarray] | None = None) -> meshio.Mesh:
-    """A surface mesh of quad (``faces`` with 4 columns) or triangle cells.
+    """A surface mesh of quad (``faces`` with 4 columns) or triangle cells, or of both (a sequence of such
+    arrays: the quads and the triangles a mesher leaves among them).
 
     Cell data: ``area`` of every face. Point data as given.
     """
-    faces = np.asarray(faces, dtype=np.int64)
-    kind = {3: "triangle", 4: "quad"}[faces.shape[1]]
+    several = isinstance(faces, (list, tuple)) and all(isinstance(f, np.ndarray) and f.ndim == 2 for f in faces)
+    blocks = list(faces) if several else [faces]
+    blocks = [np.asarray(f, dtype=np.int64) for f in blocks if len(f)]
     points = np.asarray(points, dtype=float)
-    return meshio.Mesh(points=points.copy(), cells=[(kind, faces)],
+    return meshio.Mesh(points=points.copy(), cells=[({3: "triangle", 4: "quad"}[f.shape[1]], f) for f in blocks],
                        point_data={k: np.asarray(v) for k, v in (point_data or {}).items()},
-                       cell_data={"area": [face_areas(points, faces)]})
+                       cell_data={"area": [face_areas(points, f) for f in blocks]})
 
 
 def write_surface(path, points, faces, point_data=None) -> Path:
