@@ -6,13 +6,6 @@ of the last Jacobian while they divide the residual fast enough, Newton with a
 line search on ``Phi`` otherwise, a diagonal shift where the Jacobian is not
 positive definite.
 
-The Jacobian ``M/h^2 + C/h + K`` is positive definite in most steps (the
-inertia term outweighs a negative stiffness for small ``h``): with the LDL^T
-solvers (``"ldl"``, ``"direct"``) it is factorised by supernodal Cholesky
-first, and by LDL^T only where that fails. The Newton step is the same; the
-factorisation is much cheaper on large rod networks (on the hemispherical
-gridshell's tangents, 0.45 s against 2.8-6 s at 26,036 unknowns, 1.1 s against
-6-29 s at 27,280: ``benchmarks/results/bench_hemisphere_sizes.md``).
 """
 
 from __future__ import annotations
@@ -21,7 +14,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .cholesky import CholeskyFactor
 from .equilibrium import EquilibriumCheck, forces_in_play, roundoff_level
 from .linear import SingularMatrixError, factorize, shift_diagonal
 
@@ -54,22 +46,6 @@ class Stepper:
         self.lam, self.mu = as_function(options.lam), as_function(options.mu)
         self.paths = tuple(options.paths)
         self.kept = None  # (h, factor) of the last unshifted Jacobian
-        self._cholesky = None  # the last Cholesky factor: its analysis serves the next one
-
-    def factorize(self, A):
-        """A factor of the Jacobian ``A``: Cholesky where it is positive definite (LDL^T solvers), else ``linear_solver``'s."""
-        if self.o.linear_solver in ("ldl", "direct"):
-            previous = self._cholesky
-            if self.kept is not None and self.kept[1] is previous:
-                previous = None  # the kept factor keeps its storage for the chord iterations
-            try:
-                F = CholeskyFactor(A, previous=previous, stored=True)
-            except SingularMatrixError:
-                pass
-            else:
-                self._cholesky = F
-                return F
-        return factorize(A, self.o.linear_solver)
 
     def supports(self, q, t):
         """``q`` with the constrained DOFs at their values at time ``t``."""
@@ -155,7 +131,7 @@ class Stepper:
         for shift in [0.0] + [base_shift * 10.0**k for k in range(-8, 4)]:
             A = J if shift == 0.0 else shift_diagonal(J, shift)
             try:
-                F = self.factorize(A)
+                F = factorize(A, self.o.linear_solver)
                 p = F.solve(-R)
             except SingularMatrixError:
                 continue
