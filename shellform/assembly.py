@@ -131,7 +131,11 @@ class System:
         full_to_ff[in_ff] = np.arange(self._ff.nnz)
         self._ff_slot = full_to_ff[full.slot]
         full.rows = None
-        self._upper = self._upper_scatter(free_index)
+        # effects that give the upper triangles of their element blocks: the tangents from those
+        self._upper = self._upper_groups()
+        if self._upper is not None:
+            self._upper_free = self._upper_scatter(free_index, self._ff, self._ff_slot)
+            self._upper_full = None  # built on first use
         self._measures = None  # pattern of the held measures' Jacobian, built on first use
 
     # -- construction --------------------------------------------------------------
@@ -169,72 +173,94 @@ class System:
         cols.append(diag)
         return np.concatenate(rows), np.concatenate(cols)
 
-    def _upper_scatter(self, free_index: np.ndarray):
-        """The map from the effects' values to the free tangent's data, when some effect gives upper triangles.
+    def _upper_groups(self):
+        """How the values of :meth:`tangent_free` and :meth:`tangent` are laid out, when some effect gives upper
+        triangles (:meth:`Effect.hessian_upper_pattern`); None otherwise.
 
-        The values of :meth:`tangent_free` are laid out in one buffer, a slice
-        per group: the effects with equal upper patterns
-        (:meth:`Effect.hessian_upper_pattern`) summed by their class, the
-        others' full Hessian values (summed over effects sharing a pattern).
-        A constant 0/1 CSR matrix ``S`` (one row per entry of the free
-        pattern, one column per value) sums them into the CSR data: a mirrored
-        upper value sits in the rows of its entry and of the transposed entry,
-        and values in a row or column of a constrained DOF in none. Returns
-        ``(groups, S, buffer)`` with ``groups`` the ``(kind, effect indices,
-        slice)`` of each part, or None when no effect has an upper pattern.
+        One buffer holds a slice per group: the effects with equal upper
+        patterns, summed by their class, and the other effects' full Hessian
+        values (summed over effects sharing a pattern). Returns ``(groups,
+        buffer)``, each group ``(kind, effect indices, slice)``.
         """
         upper = [e.hessian_upper_pattern() for e in self.effects]
         if all(u is None for u in upper):
             return None
-        n_f = self.free.size
-        ff = self._ff
-        keys = ff.indices.astype(np.int64)
-        keys += np.repeat(np.arange(n_f, dtype=np.int64) * n_f, np.diff(ff.indptr))  # ascending (canonical CSR)
-        groups, rows, cols = [], [], []
-        count = 0
+        groups, count = [], 0
         for k, e in enumerate(self.effects):
             if upper[k] is not None:
-                r, c, mirrored = upper[k]
+                r = upper[k][0]
                 shared = next((g for g in groups if g[0] == "upper" and len(upper[g[1][0]][0]) == len(r)
                                and _same_pattern(upper[g[1][0]], upper[k])), None)
-                if shared is not None:
-                    shared[1].append(k)
-                    continue
-                fr, fc = free_index[r], free_index[c]
-                keep = (fr >= 0) & (fc >= 0)
-                index = np.flatnonzero(keep)
-                twice = np.flatnonzero(keep & np.asarray(mirrored, dtype=bool))
-                slots = []
-                for a, b, sel in ((fr, fc, index), (fc, fr, twice)):
-                    key = a[sel] * n_f + b[sel]
-                    pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
-                    if np.any(keys[pos] != key):
-                        raise ModelError(f"effect {e.name!r}: its upper Hessian pattern has entries outside its "
-                                         f"Hessian pattern")
-                    slots.append(pos)
-                rows += slots
-                cols += [count + index, count + twice]
-                groups.append(["upper", [k], slice(count, count + len(r))])
-                count += len(r)
+                size = len(r)
+                kind = "upper"
             else:
                 start, end = self._ranges[k]
                 if end == start:
                     continue
                 shared = next((g for g in groups if g[0] == "full" and self._ranges[g[1][0]] == (start, end)), None)
-                if shared is not None:
-                    shared[1].append(k)
-                    continue
-                slot = self._ff_slot[start:end]
-                index = np.flatnonzero(slot < ff.nnz)
-                rows.append(slot[index])
-                cols.append(count + index)
-                groups.append(["full", [k], slice(count, count + end - start)])
-                count += end - start
+                size = end - start
+                kind = "full"
+            if shared is not None:
+                shared[1].append(k)
+            else:
+                groups.append([kind, [k], slice(count, count + size)])
+                count += size
+        return [(kind, tuple(ks), sl) for kind, ks, sl in groups], np.zeros(count)
+
+    def _upper_scatter(self, index: np.ndarray, pattern: _Pattern, slot: np.ndarray) -> sp.csr_matrix:
+        """The constant 0/1 matrix that sums the buffer of :meth:`_upper_groups` into the CSR data of ``pattern``.
+
+        One row per entry of the pattern, one column per value: a full
+        Hessian value sits in the row of its entry (``slot``, by triplet of
+        the full patterns), a mirrored upper value in the rows of its entry
+        and of the transposed entry; values in a row or column of a DOF that
+        ``index`` maps to -1 (a constrained DOF, for the free pattern) in
+        none.
+        """
+        groups, buffer = self._upper
+        n = pattern.shape[0]
+        keys = pattern.indices.astype(np.int64)
+        keys += np.repeat(np.arange(n, dtype=np.int64) * n, np.diff(pattern.indptr))  # ascending (canonical CSR)
+        rows, cols = [], []
+        for kind, ks, sl in groups:
+            e = self.effects[ks[0]]
+            if kind == "upper":
+                r, c, mirrored = e.hessian_upper_pattern()
+                fr, fc = index[r], index[c]
+                keep = (fr >= 0) & (fc >= 0)
+                first = np.flatnonzero(keep)
+                twice = np.flatnonzero(keep & np.asarray(mirrored, dtype=bool))
+                for a, b, sel in ((fr, fc, first), (fc, fr, twice)):
+                    key = a[sel] * n + b[sel]
+                    pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+                    if np.any(keys[pos] != key):
+                        raise ModelError(f"effect {e.name!r}: its upper Hessian pattern has entries outside its "
+                                         f"Hessian pattern")
+                    rows.append(pos)
+                    cols.append(sl.start + sel)
+            else:
+                start, end = self._ranges[ks[0]]
+                at = slot[start:end]
+                sel = np.flatnonzero(at < pattern.nnz)
+                rows.append(at[sel])
+                cols.append(sl.start + sel)
         rows, cols = np.concatenate(rows), np.concatenate(cols)
-        S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(ff.nnz, count)).tocsr()
+        S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(pattern.nnz, buffer.size)).tocsr()
         S.sum_duplicates()
-        groups = [(kind, tuple(ks), sl) for kind, ks, sl in groups]
-        return groups, S, np.zeros(count)
+        return S
+
+    def _upper_data(self, q: np.ndarray, S: sp.csr_matrix) -> np.ndarray:
+        """The effects' values at ``q`` in the buffer of :meth:`_upper_groups`, summed by ``S``."""
+        groups, buffer = self._upper
+        for kind, ks, sl in groups:
+            if kind == "upper":
+                effects = [self.effects[k] for k in ks]
+                type(effects[0]).summed_hessian_upper_values(effects, q, out=buffer[sl])
+            else:
+                buffer[sl] = self.effects[ks[0]].hessian_values(q)
+                for k in ks[1:]:
+                    buffer[sl] += self.effects[k].hessian_values(q)
+        return S @ buffer
 
     def _group_values(self, values: dict) -> np.ndarray:
         """The values of all triplets from values by effect index (summed over effects sharing a pattern; zero
@@ -320,6 +346,11 @@ class System:
         Loads are conservative and constant, so the tangent does not depend on
         the load factor.
         """
+        if self._upper is not None:
+            if self._upper_full is None:
+                self._upper_full = self._upper_scatter(np.arange(self.n_dof), self._full, self._full.slot)
+            data = self._upper_data(q, self._upper_full)
+            return sp.csr_matrix((data, self._full.indices, self._full.indptr), shape=self._full.shape)
         vals = self._group_values({k: e.hessian_values(q) for k, e in enumerate(self.effects)})
         return self._full.matrix(np.concatenate([vals, np.zeros(self.n_dof)]))
 
@@ -329,19 +360,11 @@ class System:
         Effects that give the upper triangles of their element blocks
         (:meth:`Effect.hessian_upper_pattern`) compute and scatter only those;
         the scatter fills the free pattern's data with one product by a
-        constant 0/1 matrix (:meth:`_upper_scatter`).
+        constant 0/1 matrix (:meth:`_upper_scatter`); :meth:`tangent` alike.
         """
         if self._upper is not None:
-            groups, S, buffer = self._upper
-            for kind, ks, sl in groups:
-                if kind == "upper":
-                    effects = [self.effects[k] for k in ks]
-                    type(effects[0]).summed_hessian_upper_values(effects, q, out=buffer[sl])
-                else:
-                    buffer[sl] = self.effects[ks[0]].hessian_values(q)
-                    for k in ks[1:]:
-                        buffer[sl] += self.effects[k].hessian_values(q)
-            return sp.csr_matrix((S @ buffer, self._ff.indices, self._ff.indptr), shape=self._ff.shape)
+            data = self._upper_data(q, self._upper_free)
+            return sp.csr_matrix((data, self._ff.indices, self._ff.indptr), shape=self._ff.shape)
         return self._free_matrix({k: e.hessian_values(q) for k, e in enumerate(self.effects)
                                   if self._ranges[k][1] > self._ranges[k][0]})
 

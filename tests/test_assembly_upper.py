@@ -1,4 +1,4 @@
-"""The free tangent assembled from the upper triangles of element blocks against the full Hessian values."""
+"""The tangents assembled from the upper triangles of element blocks against the full Hessian values."""
 
 import numpy as np
 import pytest
@@ -61,7 +61,7 @@ def test_upper_values_of_rod_effects_are_their_full_values(seed, ratio):
     assert np.allclose(upper, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
 
 
-def test_free_tangent_of_a_clamped_rod_network_is_the_sum_of_the_effects():
+def test_tangents_of_a_clamped_rod_network_are_the_sum_of_the_effects():
     rng = np.random.default_rng(11)
     s, net = network_from(random_lines(rng, (5, 8, 6)), natural=["rest", "straight", "rest"], twist=[0.2, 0.0, 0.1],
                           ratio="random")
@@ -80,6 +80,10 @@ def test_free_tangent_of_a_clamped_rod_network_is_the_sum_of_the_effects():
     assert np.array_equal(K.indptr, A.indptr) and np.array_equal(K.indices, A.indices)
     assert np.allclose(K.data, A.data, rtol=0, atol=1e-13 * np.abs(total).max())
     assert np.allclose(K.toarray(), K.toarray().T, rtol=0, atol=0)
+    # the full tangent alike, on the pattern of the other path
+    Kfull = system.tangent(q)
+    assert np.allclose(Kfull.toarray(), total, rtol=0, atol=1e-13 * np.abs(total).max())
+    assert Kfull.nnz == system._full.nnz
 
 
 class BlockEffect(Effect):
@@ -142,4 +146,5 @@ def test_repeated_dofs_and_mixed_effects():
     total = sum(dense(e, q) for e in effects)
     free = system.free
     assert np.allclose(system.tangent_free(q).toarray(), total[np.ix_(free, free)], rtol=0, atol=1e-13)
+    assert np.allclose(system.tangent(q).toarray(), total, rtol=0, atol=1e-13)
     assert np.allclose(dense_upper(effects[0], q), dense(effects[0], q), rtol=0, atol=1e-13)
