@@ -269,7 +269,11 @@ def fig7_section(runs):
                 "max_force": r["max_force"], "wall_time_s": r["total_s"], "success": r["success"]}
         lines.append(f"| {n} | {dofs if dofs is not None else ''} | " + " | ".join(cells) + " |")
     record["total_wall_time_s"] = total
-    lines += ["", f"Sum of the wall times of the runs in the table: {total / 60:.1f} min."]
+    per_mode = {m: sum(r["total_s"] for r in runs[m].values() if r is not None) for m in MODES}
+    record["wall_time_by_mode_s"] = per_mode
+    lines += ["", f"Sum of the wall times of the runs in the table: {total / 60:.1f} min; by mode "
+              f"{', '.join(f'{m}: {v / 60:.1f} min' for m, v in per_mode.items())}, so about "
+              f"{max(per_mode.values()) / 60:.0f} min elapsed with one process per mode on the 2 cores."]
     if record["missing"]:
         lines.append(f"Not run: {', '.join(record['missing'])}.")
     lines.append("")
@@ -682,6 +686,12 @@ NOTES = [
     "that in mode I the change O+ -> W is smooth and the first snap is W -> W, and the S of mode II above.",
     "* Trends: the first-snap threshold increases slightly with n (mode II monotonically, 1.43 to 1.51); "
     "the maximum force grows linearly with n (R^2 above 0.999 in both modes), as published.",
+    "* Fig. 7 study: the sizes were run one process per mode with other work on the same 2 cores (load "
+    "average 4 to 6), so their wall times are two to three times those of a quiet machine; n = 5..29 ran "
+    "before the stability counts went to Cholesky first (same thresholds to 1e-3 at n = 5, 11 and 19). "
+    "From n = 19 on a curve's cost is its factorisations (about a thousand), whose cost grows much faster "
+    "than the unknowns: the joints every h = pi R/(n+1) make the net an ever denser surface "
+    "(`benchmarks/results/bench_hemisphere_sizes.md`).",
     "* Cost: the Voronoi length barely matters for the thresholds (at most 0.026 in dD/R between 2 mm and "
     "0.5 mm, at most 0.008 between 1 mm and 0.5 mm), while halving it from 1 mm to 0.5 mm multiplies the "
     "wall time by 3 to 15: most of the extra time goes into the Newton iterations of the damped dynamics "
