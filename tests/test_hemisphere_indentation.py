@@ -141,3 +141,24 @@ def test_paper_resolution_n11(mode, published):
     assert res.success, res.message
     for computed, ref in zip(res.thresholds, published):
         assert abs(computed - ref) <= TOL, (res.thresholds, published)
+
+
+def test_fig7_validation_case_scores_the_trends(tmp_path, monkeypatch):
+    """The Fig. 7 case: a first snap per size and mode against the published level, its spread over
+    the dense nets, and the linearity of the maximum force (runs stubbed: the real ones take minutes)."""
+    import shellform.validation.cases_hemisphere as ch
+
+    first = {"I": {5: 1.01, 11: 1.16, 19: 1.193, 29: 1.198}, "II": {5: 1.43, 11: 1.49, 19: 1.508, 29: 1.516}}
+
+    def fake(case):
+        return {"thresholds": [first[case.mode][case.n]], "max_force": 11.0 * case.n + 6.0, "n_dof": 100 * case.n,
+                "total_s": 1.0}
+
+    monkeypatch.setattr(ch, "indentation_case", fake)
+    res = ch.case_hemisphere_fig7(tmp_path, ns=(5, 11, 19, 29))
+    by_name = {c.quantity: c for c in res.checks}
+    assert len(res.checks) == 2 * (4 + 2)
+    assert by_name["mode I, n = 19: first snap dD/R"].passed
+    assert by_name["mode II: spread of the first snap over n >= 19"].computed == pytest.approx(0.008)
+    assert by_name["mode I: maximum force linear in n, R^2"].computed == pytest.approx(1.0)
+    assert all((tmp_path / f).exists() for f in res.figures) and len(res.figures) == 4

@@ -49,3 +49,57 @@ def case_hemisphere(out, ns=PAPER_N, voronoi_length: float = 1.0e-3) -> CaseResu
                  + ". The full study (convergence, construction routes, sensitivity, dense n) is "
                  "validation/hemisphere/run.py.")
     return res
+
+
+#: the paper's Fig. 7: rods per direction of the trend study
+FIG7_N = (5, 7, 9, 11, 19, 29, 39, 49)
+#: what the case runs unless told: n = 39 and 49 cost about an hour and several hours per run on two
+#: cores (their factorisations, ``benchmarks/results/bench_hemisphere_sizes.md``)
+FIG7_DEFAULT_N = (5, 7, 9, 11, 19, 29)
+#: largest spread of the first snap over the dense nets (n >= 19) read as "almost constant" (our reading)
+FLAT_SPREAD = 0.05
+
+
+def case_hemisphere_fig7(out, ns=FIG7_DEFAULT_N, voronoi_length: float = 1.0e-3) -> CaseResult:
+    """The paper's Fig. 7: first snap and maximum force against n, both modes.
+
+    Checks, per mode: every first snap within the tolerance of the published
+    level (about 1.1 in mode I, 1.5 in mode II), its spread over the dense
+    nets (n >= 19) below ``FLAT_SPREAD``, and the maximum force linear in n.
+    ``ns`` picks the sizes (``FIG7_N`` is the paper's whole set).
+    """
+    res = CaseResult("hemisphere_fig7", "hemispherical gridshell, the paper's Fig. 7: first snap and maximum force "
+                                        "against n, modes I and II")
+    notes = []
+    for mode in ("I", "II"):
+        level = PUBLISHED[mode]["snap_dD_over_R"][0]
+        first, forces = [], []
+        for n in ns:
+            run = indentation_case(IndentationCase(n, mode, voronoi_length=voronoi_length))
+            f1 = run["thresholds"][0] if run["thresholds"] else np.nan
+            first.append(f1)
+            forces.append(np.nan if run["max_force"] is None else run["max_force"])
+            res.checks.append(Check(f"mode {mode}, n = {n}: first snap dD/R", f1, level, TOLERANCE,
+                                    relative=False, source=SOURCE + ", Fig. 7"))
+            notes.append(f"mode {mode}, n = {n}: {run['n_dof']} DOFs, {run['total_s']:.0f} s, first snap {f1:.3f}, "
+                         f"max force {forces[-1]:.1f}")
+        ns_arr = np.asarray(ns, dtype=float)
+        dense = [f for n, f in zip(ns, first) if n >= 19]
+        if len(dense) >= 2:
+            res.checks.append(Check(f"mode {mode}: spread of the first snap over n >= 19", float(np.ptp(dense)), 0.0,
+                                    FLAT_SPREAD, relative=False,
+                                    source=SOURCE + " (trend: almost constant for n = 19..49; tolerance ours)"))
+        slope, intercept = np.polyfit(ns_arr, forces, 1)
+        fit = np.polyval([slope, intercept], ns_arr)
+        r2 = 1 - np.sum((np.array(forces) - fit) ** 2) / np.sum((np.array(forces) - np.mean(forces)) ** 2)
+        res.checks.append(Check(f"mode {mode}: maximum force linear in n, R^2", float(r2), 1.0, 0.01,
+                                relative=False, source=SOURCE + " (trend: almost linear in n)"))
+        for name, y, label in (("first_snap", first, "first snap dD/R"), ("max_force", forces, "max -sum(Fz) R^2/EI")):
+            fig = out / f"hemisphere_fig7_{name}_mode{mode}.png"
+            plot_curve(fig, ns_arr, np.asarray(y, dtype=float), "n (rods per direction)", label,
+                       f"mode {mode}" + (f", published about {level:g}" if name == "first_snap" else ""),
+                       CurveStyle(reference=(ns_arr, np.full(ns_arr.size, level)) if name == "first_snap" else None))
+            res.figures.append(fig.name)
+    res.notes = ("Voronoi length {:.1f} mm. ".format(voronoi_length * 1e3) + "; ".join(notes)
+                 + ". The cached study with its table and figure is validation/hemisphere/run.py --study fig7.")
+    return res
