@@ -689,7 +689,7 @@ NOTES = [
     "* Fig. 7 study: the sizes were run one process per mode with other work on the same 2 cores (load "
     "average 4 to 6), so their wall times are two to three times those of a quiet machine; n = 5..29 ran "
     "before the stability counts went to Cholesky first (same thresholds to 1e-3 at n = 5, 11 and 19). "
-    "From n = 19 on a curve's cost is its factorisations (about a thousand), whose cost grows much faster "
+    "From n = 19 on a curve's cost is its factorisations (about 680 LDL^T ones), whose cost grows much faster "
     "than the unknowns: the joints every h = pi R/(n+1) make the net an ever denser surface "
     "(`benchmarks/results/bench_hemisphere_sizes.md`).",
     "* Cost: the Voronoi length barely matters for the thresholds (at most 0.026 in dD/R between 2 mm and "
