@@ -24,13 +24,18 @@ the normalisation). Every term of the hinge Hessians over the tangents is an
 outer product of two vectors, a multiple of the identity or a cross-product
 matrix, so the projections are applied to vectors, and the products
 ``P_0 M P_1`` of the off-diagonal blocks are expanded into outer products.
+The isotropic bending and the twisting collect these terms in a
+:class:`HingeHessian`, which sums the outer products of all hinges with one
+batched product of small matrices and carries the sum of the effects to the
+stencil once, to the upper triangle of each stencil Hessian
+(:data:`UPPER_PAIRS`) for the System's tangents.
 
 Array layout: the closed-form functions work on *component-major* arrays with
 the hinge index last (vectors ``(3, h)``, Hessians ``(8, 8, h)``), so that every
 arithmetic operation runs over all hinges on contiguous memory; the effects'
-Hessian patterns follow the same order (entry-major, ``(11, 11, h)``). The
-layered dense form of the same derivatives (over the tangents, then through
-dense 0/+-1 maps) serves as the reference in the tests.
+Hessian patterns follow the same order (entry-major, ``(11, 11, h)`` and
+``(66, h)``). The layered dense form of the same derivatives (over the
+tangents, then through dense 0/+-1 maps) serves as the reference in the tests.
 
 Conventions (Bergou et al. 2008): curvature binormal
 ``kb = 2 t^0 x t^1 / (1 + t^0 . t^1)``; material curvature of edge ``j`` at the
@@ -71,16 +76,6 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a b^T`` for stacks of vectors ``(k, h)`` and ``(m, h)``: shape ``(k, m, h)``."""
     return a[:, None] * b[None]
-
-
-def _add_skew(M: np.ndarray, a: np.ndarray) -> None:
-    """``M += [a]_x`` (the cross-product matrix of ``a``) in place; ``M`` (3, 3, h)."""
-    M[0, 1] -= a[2]
-    M[0, 2] += a[1]
-    M[1, 0] += a[2]
-    M[1, 2] -= a[0]
-    M[2, 0] -= a[1]
-    M[2, 1] += a[0]
 
 
 def _add_diagonal(M: np.ndarray, d: np.ndarray) -> None:
