@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from shellform.effects.rod_hinge import (  # the material-frame layer is shared: finite differences check it
+from shellform.effects.rod_material_frame import (  # shared: finite differences check it
     BinormalJacobian,
     curvature_binormal_jacobian,
     hessian_of_projected_binormal,

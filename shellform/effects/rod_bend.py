@@ -23,22 +23,15 @@ sees its material frames whatever its natural curvature. The gradient and
 Hessian are exact, including the dependence of the time-parallel reference
 frames on the positions (:mod:`shellform.effects.rod_hinge`); each material
 curvature and its derivatives come from
-:func:`~shellform.effects.rod_hinge.material_curvature_term`.
+:func:`~shellform.effects.rod_material_frame.material_curvature_term`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .rod_hinge import (
-    HingeEffect,
-    binormal_energy_derivatives,
-    binormal_energy_hessian,
-    curvature_binormal_jacobian,
-    material_curvature_term,
-    material_curvature_value,
-    project_to_edges,
-)
+from .rod_hinge import HingeEffect, binormal_energy_derivatives, binormal_energy_hessian, project_to_edges
+from .rod_material_frame import curvature_binormal_jacobian, material_curvature_term, material_curvature_value
 from .rod_kinematics import curvature_binormal, material_curvatures, material_frames
 from .base import LineResults
 from .rod_output import EdgeSections, edge_means

@@ -37,6 +37,10 @@ Hessian patterns follow the same order (entry-major, ``(11, 11, h)`` and
 ``(66, h)``). The layered dense form of the same derivatives (over the
 tangents, then through dense 0/+-1 maps) serves as the reference in the tests.
 
+The reference twist's derivatives are in :mod:`.rod_reference_twist`, the
+material-frame terms of curved and anisotropic hinges in
+:mod:`.rod_material_frame`, the component-major algebra in :mod:`.rod_vectors`.
+
 Conventions (Bergou et al. 2008): curvature binormal
 ``kb = 2 t^0 x t^1 / (1 + t^0 . t^1)``; material curvature of edge ``j`` at the
 hinge ``omega^j = (kb . m2^j, -kb . m1^j)``; twist
@@ -46,238 +50,10 @@ hinge ``omega^j = (kb . m2^j, -kb . m1^j)``; twist
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from .base import Effect
-from .rod_kinematics import dot, skew
-
-_I3 = np.eye(3)
-
-
-# -- component-major vector algebra (vectors (3, h), matrices (3, 3, h)) --------------------
-
-
-def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Cross products of vectors (3, h)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape)) if out is None else out
-    np.subtract(a[1] * b[2], a[2] * b[1], out=out[0])
-    np.subtract(a[2] * b[0], a[0] * b[2], out=out[1])
-    np.subtract(a[0] * b[1], a[1] * b[0], out=out[2])
-    return out
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Dot products over the component axis, the second to last: vectors (3, h) or stacks (n, 3, h)."""
-    return np.einsum("...ih,...ih->...h", a, b)
-
-
-def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a b^T`` for stacks of vectors ``(k, h)`` and ``(m, h)``: shape ``(k, m, h)``."""
-    return a[:, None] * b[None]
-
-
-def _add_diagonal(M: np.ndarray, d: np.ndarray) -> None:
-    """``M += d I`` in place; ``M`` (3, 3, h), ``d`` (h,)."""
-    for i in range(3):
-        M[i, i] += d
-
-
-def _project(v: np.ndarray, t: np.ndarray, inv_l: np.ndarray) -> np.ndarray:
-    """``P v / l`` with ``P = I - t t^T``: a derivative over a tangent carried to its edge vector."""
-    return (v - _dot(v, t) * t) * inv_l
-
-
-def _subtract_curvature(U: np.ndarray, t: np.ndarray, g: np.ndarray, scale: np.ndarray) -> None:
-    """``U -= scale W`` with ``W = t g^T + (g . t) (I / 2 - 3/2 t t^T)`` (the normalisation's own term)."""
-    gt = _dot(g, t)
-    U -= _outer(scale * t, g - (1.5 * gt) * t)
-    _add_diagonal(U, -0.5 * scale * gt)
-
-
-# -- the material-frame terms of curved and anisotropic hinges, over the tangents -------
-
-
-class BinormalJacobian(NamedTuple):
-    """The curvature binormal of each hinge with the quantities its derivatives are built from.
-
-    Attributes
-    ----------
-    kb : ndarray (n, 3)
-    chi : ndarray (n,)
-        ``1 + t0 . t1``.
-    J : ndarray (n, 3, 6)
-        ``d kb / d(t0, t1)``.
-    """
-
-    kb: np.ndarray
-    chi: np.ndarray
-    J: np.ndarray
-
-
-def curvature_binormal_jacobian(t0: np.ndarray, t1: np.ndarray) -> BinormalJacobian:
-    """Curvature binormal and its Jacobian with respect to ``(t0, t1)``."""
-    chi = 1.0 + dot(t0, t1)
-    kb = 2.0 * np.cross(t0, t1) / chi[:, None]
-    J = np.empty((len(t0), 3, 6))
-    J[:, :, :3] = (-2.0 * skew(t1) - kb[:, :, None] * t1[:, None, :]) / chi[:, None, None]
-    J[:, :, 3:] = (2.0 * skew(t0) - kb[:, :, None] * t0[:, None, :]) / chi[:, None, None]
-    return BinormalJacobian(kb, chi, J)
-
-
-def hessian_of_projected_binormal(t0, t1, kb, chi, J, p):
-    """Hessian over ``(t0, t1)`` of ``h = p . kb`` for a fixed vector ``p``; shape (n, 6, 6).
-
-    From ``h chi = 2 p . (t0 x t1)``:
-    ``H_h = (2 H_N - grad h grad chi^T - grad chi grad h^T - h H_chi) / chi``.
-    """
-    n = len(t0)
-    h = dot(p, kb)
-    gh = np.einsum("nk,nka->na", p, J)
-    gchi = np.concatenate([t1, t0], axis=1)
-    P = skew(p)
-    H = np.zeros((n, 6, 6))
-    H[:, :3, 3:] = -2.0 * P
-    H[:, 3:, :3] = 2.0 * P
-    H -= gh[:, :, None] * gchi[:, None, :] + gchi[:, :, None] * gh[:, None, :]
-    H[:, :3, 3:] -= h[:, None, None] * _I3
-    H[:, 3:, :3] -= h[:, None, None] * _I3
-    return H / chi[:, None, None]
-
-
-
-
-
-def _transported_components(abc):
-    """Parallel-transported directors in the stored frame, with first and second derivatives.
-
-    With ``(a, b, c)`` the components of a tangent in the stored frame
-    ``(u, v, s)`` of its edge, the transported directors have components
-    ``U = (c + b^2/d, -ab/d, -a)`` and ``V = (-ab/d, c + a^2/d, -b)``,
-    ``d = 1 + c``.
-
-    Returns
-    -------
-    U, V : (n, 3)
-    DU, DV : (n, 3, 3)   d(component)/d(a, b, c)
-    HU, HV : (n, 3, 3, 3) second derivatives, indexed [component, var, var]
-    """
-    a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
-    n = len(a)
-    d = 1.0 + c
-    d2, d3 = d * d, d * d * d
-    U = np.stack([c + b * b / d, -a * b / d, -a], axis=1)
-    V = np.stack([-a * b / d, c + a * a / d, -b], axis=1)
-    DU = np.zeros((n, 3, 3))
-    DV = np.zeros((n, 3, 3))
-    DU[:, 0, 1] = 2 * b / d
-    DU[:, 0, 2] = 1 - b * b / d2
-    DU[:, 1, 0] = -b / d
-    DU[:, 1, 1] = -a / d
-    DU[:, 1, 2] = a * b / d2
-    DU[:, 2, 0] = -1.0
-    DV[:, 0] = DU[:, 1]
-    DV[:, 1, 0] = 2 * a / d
-    DV[:, 1, 2] = 1 - a * a / d2
-    DV[:, 2, 1] = -1.0
-    HU = np.zeros((n, 3, 3, 3))
-    HV = np.zeros((n, 3, 3, 3))
-    HU[:, 0, 1, 1] = 2 / d
-    HU[:, 0, 1, 2] = HU[:, 0, 2, 1] = -2 * b / d2
-    HU[:, 0, 2, 2] = 2 * b * b / d3
-    HU[:, 1, 0, 1] = HU[:, 1, 1, 0] = -1 / d
-    HU[:, 1, 0, 2] = HU[:, 1, 2, 0] = b / d2
-    HU[:, 1, 1, 2] = HU[:, 1, 2, 1] = a / d2
-    HU[:, 1, 2, 2] = -2 * a * b / d3
-    HV[:, 0] = HU[:, 1]
-    HV[:, 1, 0, 0] = 2 / d
-    HV[:, 1, 0, 2] = HV[:, 1, 2, 0] = -2 * a / d2
-    HV[:, 1, 2, 2] = 2 * a * a / d3
-    return U, V, DU, DV, HU, HV
-
-
-def material_curvature_value(kb, t_edge, frame, omega_bar, theta):
-    """``omega_bar . omega^j`` alone (no derivatives), for energy evaluations."""
-    ct, st = np.cos(theta), np.sin(theta)
-    w1, w2 = omega_bar[:, 0], omega_bar[:, 1]
-    A = -w1 * st - w2 * ct
-    B = w1 * ct - w2 * st
-    a, b, c = np.einsum("nia,ni->na", frame, t_edge).T
-    d = 1.0 + c
-    U = np.stack([c + b * b / d, -a * b / d, -a], axis=1)
-    V = np.stack([-a * b / d, c + a * a / d, -b], axis=1)
-    p = np.einsum("nia,ni->na", frame, kb)
-    return dot(p, A[:, None] * U + B[:, None] * V)
-
-
-def material_curvature_term(t0, t1, binormal: BinormalJacobian, edge, frame, omega_bar, theta):
-    """Value and derivatives over ``y = (t0, t1, theta0, theta1)`` of ``omega_bar . omega^j``.
-
-    ``omega_bar . omega^j = kb . W`` with ``W = omega_bar_1 m2 - omega_bar_2 m1``,
-    a vector fixed in the material frame of edge ``j``.
-
-    Parameters
-    ----------
-    t0, t1 : (n, 3)
-        Tangents of the edges at the trial state.
-    binormal : BinormalJacobian
-        Of ``t0, t1`` (:func:`curvature_binormal_jacobian`).
-    edge : {0, 1}
-        Which edge of the hinge.
-    frame : (n, 3, 3)
-        Stored frame of that edge, columns ``(u, v, s)``.
-    omega_bar : (n, 2)
-        Natural material curvature of the hinge in that edge's frame.
-    theta : (n,)
-        Twist angle of that edge.
-
-    Returns
-    -------
-    f : (n,), g : (n, 8), H : (n, 8, 8)
-    """
-    n = len(t0)
-    kb, chi, J = binormal
-    t_edge = (t0, t1)[edge]
-    ct, st = np.cos(theta), np.sin(theta)
-    w1, w2 = omega_bar[:, 0], omega_bar[:, 1]
-    A = -w1 * st - w2 * ct  # coefficient of u in W
-    B = w1 * ct - w2 * st  # coefficient of v in W (dA/dtheta = -B, dB/dtheta = A)
-    abc = np.einsum("nia,ni->na", frame, t_edge)
-    U, V, DU, DV, HU, HV = _transported_components(abc)
-    w = A[:, None] * U + B[:, None] * V
-    w_th = -B[:, None] * U + A[:, None] * V
-    Dw = A[:, None, None] * DU + B[:, None, None] * DV
-    Dw_th = -B[:, None, None] * DU + A[:, None, None] * DV
-    p = np.einsum("nia,ni->na", frame, kb)  # kb in the stored frame of the edge
-    W = np.einsum("nia,na->ni", frame, w)
-    W_th = np.einsum("nia,na->ni", frame, w_th)
-
-    f = dot(p, w)
-    te = slice(3 * edge, 3 * edge + 3)
-    th = 6 + edge
-    g = np.zeros((n, 8))
-    g[:, :6] = np.einsum("nk,nka->na", W, J)
-    g[:, te] += np.einsum("nab,nb->na", frame, np.einsum("nka,nk->na", Dw, p))
-    g[:, th] = dot(p, w_th)
-
-    H = np.zeros((n, 8, 8))
-    H[:, :6, :6] = hessian_of_projected_binormal(t0, t1, kb, chi, J, W)
-    # d/dt_edge of W, in global coordinates: frame Dw frame^T
-    dW = np.einsum("nia,nab,njb->nij", frame, Dw, frame)
-    cross = np.einsum("nki,nkj->nij", J, dW)  # (n, 6, 3)
-    H[:, :6, te] += cross
-    H[:, te, :6] += np.swapaxes(cross, 1, 2)
-    curv = np.einsum("nk,nkab->nab", p, A[:, None, None, None] * HU + B[:, None, None, None] * HV)
-    H[:, te, te] += np.einsum("nia,nab,njb->nij", frame, curv, frame)
-    mixed = np.einsum("nki,nk->ni", J, W_th)
-    mixed[:, te] += np.einsum("nab,nb->na", frame, np.einsum("nka,nk->na", Dw_th, p))
-    H[:, :6, th] = mixed
-    H[:, th, :6] = mixed
-    H[:, th, th] = -f
-    return f, g, H
-
-
+from .rod_vectors import cross, inner, outer, project, subtract_curvature, view
 
 
 # -- the isotropic bending term |kb|^2 over the edge vectors -------------------------------
@@ -306,18 +82,18 @@ def binormal_energy_derivatives(t0, t1, l0, l1, order=1, scale=None):
     -------
     f : (h,), and for ``order == 1`` grad : (6, h)
     """
-    chi = 1.0 + _dot(t0, t1)
+    chi = 1.0 + inner(t0, t1)
     ichi = 1.0 / chi
-    kb = (2.0 * ichi) * _cross(t0, t1)
-    kk = _dot(kb, kb)
+    kb = (2.0 * ichi) * cross(t0, t1)
+    kk = inner(kb, kb)
     if order == 0:
         return (kk,)
     s2 = 2.0 if scale is None else 2.0 * scale
     w = t0 + t1
     kw = kk * w
     gh = np.empty((6,) + kk.shape)  # K^T kb
-    np.multiply(2.0 * _cross(t1, kb) - kw, s2 * ichi / l0, out=gh[:3])
-    np.multiply(2.0 * _cross(kb, t0) - kw, s2 * ichi / l1, out=gh[3:])
+    np.multiply(2.0 * cross(t1, kb) - kw, s2 * ichi / l0, out=gh[:3])
+    np.multiply(2.0 * cross(kb, t0) - kw, s2 * ichi / l1, out=gh[3:])
     return kk, gh
 
 
@@ -350,12 +126,12 @@ def binormal_energy_hessian(acc: HingeHessian, k) -> None:
     p = 4.0 * ichi - kk
     r = 4.0 * c * ichi + kk
     X, Y = acc.claim()
-    X, Y = _view(X, (2, 3, -1)), _view(Y, (2, 3, -1))
+    X, Y = view(X, (2, 3, -1)), view(Y, (2, 3, -1))
     mi = (-s2 * ichi * ichi) * inv
     np.subtract((mi * p)[:, None] * T, (mi * r)[:, None] * Tr, out=X)
     np.add((u * inv)[:, None] * T, (2.0 * inv)[:, None] * Tr, out=Y)
     X, Y = acc.claim()
-    np.multiply(T[0] + T[1], inv[:, None], out=_view(Y, (2, 3, -1)))
+    np.multiply(T[0] + T[1], inv[:, None], out=view(Y, (2, 3, -1)))
     np.multiply(Y, (-0.5 * s2) * kk * ichi * ichi, out=X)
     ca = (s2 * ichi) * inv * inv
     alpha = s2 * ichi * inv[0] * inv[1]
@@ -370,129 +146,6 @@ def binormal_energy_hessian(acc: HingeHessian, k) -> None:
     acc.diagonal[2] -= ar
 
 
-# -- the reference twist over the edge vectors ----------------------------------------------
-
-
-class TwistTerms(NamedTuple):
-    """The reference-twist change and what its Hessian is built from (component-major arrays)."""
-
-    beta: np.ndarray
-    grad: np.ndarray  # (6, h) over the edge vectors
-    grad_t: np.ndarray  # (6, h) over the tangents
-    parts: tuple | None
-
-
-def stored_twist_terms(s0, s1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """What the second triangle of the reference twist takes from the stored tangents alone:
-    ``s1 x s0``, ``s0 + s1`` (3, h) and ``s1 . s0`` (h,)."""
-    return _cross(s1, s0), s0 + s1, _dot(s1, s0)
-
-
-def reference_twist_derivatives(t0, t1, l0, l1, s0, s1, order=2, T=None, inv=None, stored=None) -> TwistTerms:
-    """Change of the reference twist from the stored state, with its gradient over ``(e^0, e^1)``.
-
-    ``beta = -Omega(s0, t0, t1) - Omega(s0, t1, s1)`` (see
-    :mod:`shellform.effects.rod_kinematics`), so that ``m(q) = m_stored + beta``;
-    ``Omega = 2 atan2(N, D)`` with ``N`` and ``D`` bilinear (first triangle) or
-    linear (second) in the tangents. For ``order == 2`` the returned ``parts``
-    feed :func:`reference_twist_hessian`. ``T`` (2, 3, h) and ``inv`` (2, h),
-    the tangents and inverse lengths stacked, and ``stored``
-    (:func:`stored_twist_terms`) are computed unless given.
-    """
-    if T is None:
-        T = np.stack((t0, t1))
-        inv = 1.0 / np.stack((l0, l1))
-    # t1 x s0 and s0 x t0 (the gradient of N1 over the tangents) and s1 x s0 (that of N2 over t1)
-    gN1 = np.empty_like(T)
-    _cross(t1, s0, out=gN1[0])
-    _cross(s0, t0, out=gN1[1])
-    gN2, gD2, s1s0 = stored_twist_terms(s0, s1) if stored is None else stored
-    # N1 = s0 . (t0 x t1), D1 = 1 + t0 . t1 + s0 . (t0 + t1); N2 = s0 . (t1 x s1), D2 = 1 + (s0 + s1) . t1 + s1 . s0
-    N1, N2 = _dot(t0, gN1[0]), _dot(t1, gN2)
-    s0t1 = _dot(s0, t1)
-    D1 = 1.0 + _dot(t0, t1) + _dot(s0, t0) + s0t1
-    gD1 = s0 + T[::-1]
-    R1 = N1 * N1 + D1 * D1
-    G1 = D1 * gN1
-    G1 -= N1 * gD1
-    D2 = 1.0 + s0t1 + _dot(s1, t1) + s1s0
-    R2 = N2 * N2 + D2 * D2
-    G2 = D2 * gN2 - N2 * gD2
-    beta = -2.0 * (np.arctan2(N1, D1) + np.arctan2(N2, D2))
-    gt = (-2.0 / R1) * G1
-    gt[1] -= (2.0 / R2) * G2
-    gtt = _dot(gt, T)
-    g = gt - gtt[:, None] * T
-    g *= inv[:, None]
-    parts = None
-    if order == 2:
-        parts = (N1, D1, R1, gN1, gD1, N2, D2, R2, G2, gN2, gD2, gtt)
-    return TwistTerms(beta, _view(g, (6, -1)), _view(gt, (6, -1)), parts)
-
-
-def reference_twist_hessian(acc: HingeHessian, s0, terms: TwistTerms, c, k) -> None:
-    """Add ``c Hess(beta) + 2 k grad(beta) grad(beta)^T`` over ``(e^0, e^1)`` to ``acc`` (two slots of its own).
-
-    The Hessian of ``2 atan2(N, D)`` over the tangents is
-    ``2 (D H_N - N H_D) / R - (G g_R^T + g_R G^T) / R^2`` with
-    ``R = N^2 + D^2``, ``G = D g_N - N g_D``, ``g_R = 2 (N g_N + D g_D)``
-    (the antisymmetric part of ``grad G`` cancels). For the first triangle
-    ``H_N = [[0, -S], [S, 0]]`` (``S = [s0]_x``) and ``H_D = [[0, I], [I, 0]]``;
-    the second has ``H_N = H_D = 0``. Carried to the edges (``P_a v / l_a``,
-    ``P_a = I - t_a t_a^T``), the first triangle's ``G`` is
-    ``-(R1 / 2) (grad beta + (0, 2 P_1 G2 / (R2 l1)))``, so the rank-one terms
-    are ``grad beta (k grad beta - c b / (2 R1))^T`` and
-    ``(0, P_1 G2 / l1) (c (0, 2 P_1 (N2 g_N2 + D2 g_D2) / l1) / R2^2 - c b / (R1 R2))^T``
-    with ``b = (P_0 g_R1 / l0, P_1 g_R1 / l1)``; the off-diagonal block of the
-    first triangle is ``2 c P0 (D1 [s0]_x + N1 I) P1 / (R1 l0 l1)``, and the
-    normalisation adds its terms to the diagonal blocks.
-    """
-    N1, D1, R1, gN1, gD1, N2, D2, R2, G2, gN2, gD2, gtt = terms.parts
-    T, inv = acc.T, acc.inv
-    t0, t1 = T
-    g = terms.grad
-    # b: the gradient of R1 over the edge vectors
-    gR1 = N1 * gN1
-    gR1 += D1 * gD1
-    b = gR1 - _dot(gR1, T)[:, None] * T
-    b *= (2.0 * inv)[:, None]
-    b = _view(b, (6, -1))
-    X, Y = acc.claim()
-    X[...] = g
-    np.subtract(k * g, (0.5 * c / R1) * b, out=Y)
-    X, Y = acc.claim()
-    X[:3] = 0.0
-    # P1 G2 / l1 and 2 P1 (N2 gN2 + D2 gD2) / l1
-    np.multiply(G2 - _dot(G2, t1) * t1, inv[1], out=X[3:])
-    np.multiply(b, -c / (R1 * R2), out=Y)
-    gR2 = N2 * gN2
-    gR2 += D2 * gD2
-    gR2 -= _dot(gR2, t1) * t1
-    gR2 *= (2.0 * c / (R2 * R2)) * inv[1]
-    Y[3:] += gR2
-    # off-diagonal block of the first triangle: P0 M P1 = M - t0 (M^T t0)^T - (M t1) t1^T + (t0^T M t1) t0 t1^T
-    # for M = D1 [s0]_x + N1 I: M^T t0 = N1 t0 - D1 (s0 x t0), M t1 = N1 t1 - D1 (t1 x s0), t0^T M t1 = N1 (t0.t1 - D1)
-    alpha = (2.0 * inv[0] * inv[1] / R1) * c
-    aN, aD = alpha * N1, alpha * D1
-    R = acc.R
-    R[1:5:3] -= aN * T - aD * gN1[::-1]
-    R[1] += (aN * (acc.cos - D1)) * t1
-    acc.skew += aD * s0
-    acc.diagonal[2] += aN
-    # the normalisation: -(c / l^2) W with W = t g^T + (g . t) (I / 2 - 3/2 t t^T), g over the tangent
-    sc = c * inv * inv
-    R[0:6:5] -= sc[:, None] * (_view(terms.grad_t, (2, 3, -1)) - (1.5 * gtt)[:, None] * T)
-    acc.diagonal[:2] -= 0.5 * sc * gtt
-    # tau = theta1 - theta0 + m: its gradient over z is (grad beta, -1, 1)
-    k2 = 2.0 * k
-    kg = k2 * g
-    theta = acc.theta
-    theta[:, 0] -= kg
-    theta[:, 1] += kg
-    acc.theta2[0:3:2] += k2
-    acc.theta2[1] -= k2
-
-
 # -- from the edge vectors to the stencil -----------------------------------------------------
 
 
@@ -505,23 +158,23 @@ def project_to_edges(t0, t1, l0, l1, g, H=None):
     """
     i0, i1 = 1.0 / l0, 1.0 / l1
     gz = g.copy()
-    gz[:3] = _project(g[:3], t0, i0)
-    gz[3:6] = _project(g[3:6], t1, i1)
+    gz[:3] = project(g[:3], t0, i0)
+    gz[3:6] = project(g[3:6], t1, i1)
     if H is None:
         return gz, None
     Hz = H.copy()
     for a, t in enumerate((t0, t1)):
         s = slice(3 * a, 3 * a + 3)
-        Hz[:, s] -= _outer((Hz[:, s] * t).sum(axis=1), t)
-        Hz[s] -= _outer(t, (Hz[s] * t[:, None]).sum(axis=0))
+        Hz[:, s] -= outer((Hz[:, s] * t).sum(axis=1), t)
+        Hz[s] -= outer(t, (Hz[s] * t[:, None]).sum(axis=0))
     scale = np.ones_like(g)
     scale[:3] = i0
     scale[3:6] = i1
-    Hz *= _outer(scale, scale)
+    Hz *= outer(scale, scale)
     for a, (t, ia) in enumerate(((t0, i0), (t1, i1))):
         s = slice(3 * a, 3 * a + 3)
         W = np.zeros((3, 3) + i0.shape)
-        _subtract_curvature(W, t, g[s], -ia * ia)
+        subtract_curvature(W, t, g[s], -ia * ia)
         Hz[s, s] -= W + W.swapaxes(0, 1)
     return gz, Hz
 
@@ -602,11 +255,6 @@ def stencil_pattern(stencil: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 T0_0, T1_0, T1_1, T0_1 = range(4)
 
 
-def _view(a: np.ndarray, shape: tuple) -> np.ndarray:
-    """``a`` with another shape, as a view (never a copy: results are written to it)."""
-    return np.reshape(a, shape, copy=False)
-
-
 class HingeHessian:
     """The Hessian over ``z`` of a sum of hinge energies, collected term by term and carried to the stencil once.
 
@@ -633,7 +281,7 @@ class HingeHessian:
         self.X, self.Y = self._XY
         self._hinge_major = np.empty((h, 2, k, 6))  # the copy the product reads
         self.U = np.empty((6, 6, h))
-        self.R = _view(self.Y[:4], (8, 3, h))  # right vectors of the shared slots by blocks: 2 slot + block
+        self.R = view(self.Y[:4], (8, 3, h))  # right vectors of the shared slots by blocks: 2 slot + block
         self.T = np.empty((2, 3, h))
         self.inv = np.empty((2, h))
         self.cos = None
@@ -655,7 +303,7 @@ class HingeHessian:
         T[1] = t1
         np.divide(1.0, l0, out=self.inv[0])
         np.divide(1.0, l1, out=self.inv[1])
-        self.cos = _dot(t0, t1)
+        self.cos = inner(t0, t1)
         X = self.X
         X[T0_0:T1_0 + 1, :3] = T
         X[T1_1:T0_1 + 1, 3:] = T[::-1]
@@ -683,7 +331,7 @@ class HingeHessian:
         XY = self._hinge_major
         np.copyto(XY, self._XY.transpose(3, 0, 1, 2))
         np.matmul(XY[:, 0].transpose(0, 2, 1), XY[:, 1], out=U.transpose(2, 0, 1))
-        flat = _view(U, (36, self.h))
+        flat = view(U, (36, self.h))
         for block, first in enumerate((0, 21, 3)):
             flat[first:first + 15:7] += self.diagonal[block]
         s = self.skew
@@ -697,7 +345,7 @@ class HingeHessian:
             sel = slice(None) if sub is None else sub
             U[:, :, sel] += 0.5 * H[:6, :6]
             self.theta[:, :, sel] += H[:6, 6:]
-            self.theta2[:, sel] += _view(H, (64, -1))[_Z_TT]
+            self.theta2[:, sel] += view(H, (64, -1))[_Z_TT]
         return U
 
     def full(self) -> np.ndarray:
@@ -723,24 +371,24 @@ class HingeHessian:
         """
         h = self.h
         U = self._position()
-        out = np.empty((66, h)) if out is None else _view(out, (66, h))
+        out = np.empty((66, h)) if out is None else view(out, (66, h))
         A = U[:3, :3] + U[:3, :3].swapaxes(0, 1)
         B = U[:3, 3:] + U[3:, :3].swapaxes(0, 1)
         C = U[3:, 3:] + U[3:, 3:].swapaxes(0, 1)
-        np.take(_view(A, (9, h)), _BLOCK_UPPER, axis=0, out=out[0:6])
+        np.take(view(A, (9, h)), _BLOCK_UPPER, axis=0, out=out[0:6])
         x01, x12 = out[6:15], out[30:39]
-        np.subtract(B, A, out=_view(x01, (3, 3, h)))
-        np.negative(B, out=_view(out[15:24], (3, 3, h)))
-        np.subtract(B, C, out=_view(x12, (3, 3, h)))
+        np.subtract(B, A, out=view(x01, (3, 3, h)))
+        np.negative(B, out=view(out[15:24], (3, 3, h)))
+        np.subtract(B, C, out=view(x12, (3, 3, h)))
         x11 = out[24:30]
         np.take(x01, _BLOCK_UPPER, axis=0, out=x11)
         x11 += np.take(x12, _BLOCK_UPPER_T, axis=0)
         np.negative(x11, out=x11)
-        np.take(_view(C, (9, h)), _BLOCK_UPPER, axis=0, out=out[39:45])
+        np.take(view(C, (9, h)), _BLOCK_UPPER, axis=0, out=out[39:45])
         a, c = self.theta[:3], self.theta[3:]
-        np.negative(a, out=_view(out[45:51], (3, 2, h)))
-        np.subtract(a, c, out=_view(out[51:57], (3, 2, h)))
-        out[57:63] = _view(c, (6, h))
+        np.negative(a, out=view(out[45:51], (3, 2, h)))
+        np.subtract(a, c, out=view(out[51:57], (3, 2, h)))
+        out[57:63] = view(c, (6, h))
         out[63:66] = self.theta2
         return out
 

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rod_hinge import HingeEffect, reference_twist_derivatives, reference_twist_hessian, stored_twist_terms
+from .rod_hinge import HingeEffect
+from .rod_reference_twist import reference_twist_derivatives, reference_twist_hessian, stored_twist_terms
 from .base import LineResults
 from .rod_output import edge_means
 
