@@ -333,3 +333,23 @@ def test_critical_point_located_in_fewer_trials_than_bisection():
     n_events = len(res.events)
     assert n_events >= 3 and all(e.located for e in res.events)
     assert len(trials) <= 8 * n_events
+
+
+def test_a_branch_known_stable_is_factorised_by_cholesky_first(monkeypatch):
+    """Without stability counting the tracer takes the caller's word that its branch is stable
+    (``definite_branch``): the same path, its tangents factorised by Cholesky first."""
+    import shellform.solvers.continuation.problem as problem
+    from test_continuation_models import P_CR, von_mises
+
+    from shellform.solvers.continuation import trace_path
+
+    calls = []
+    original = problem.CholeskyFactor
+    monkeypatch.setattr(problem, "CholeskyFactor", lambda *a, **k: calls.append(1) or original(*a, **k))
+    options = dict(initial_increment=P_CR / 10, parameter_bounds=(0.0, 0.9 * P_CR), stability=False, max_steps=50)
+    plain = trace_path(von_mises("load"), "load", **options)
+    assert not calls
+    stable = trace_path(von_mises("load"), "load", definite_branch=True, **options)
+    assert calls and plain.success and stable.success
+    np.testing.assert_allclose(stable["lam"], plain["lam"], rtol=1e-12)
+    np.testing.assert_allclose(stable["displacement"], plain["displacement"], rtol=1e-9, atol=1e-14)

@@ -269,7 +269,7 @@ class _Trace:
             system, "displacement", q0=self.q, p0=self.p, callback=on_point,
             initial_increment=self.o.increment * self.R, parameter_bounds=(-np.inf, self.dD_max),
             max_steps=self.o.max_steps - self.totals["steps"], rtol=self.o.rtol, store_states=False,
-            stability=False, locate_tol=1e-2,
+            stability=False, definite_branch=True, locate_tol=1e-2,
         )
         self.totals["steps"] += res.steps
         self.totals["newton"] += res.newton_iterations

@@ -71,6 +71,10 @@ class ContinuationOptions:
         one in a step (two critical points in one step, or a jump).
     stability : bool
         Count negative eigenvalues at every point (needed for bifurcations).
+    definite_branch : bool
+        Without ``stability``: the caller traces a branch it knows stable (it
+        counts for itself and stops at the first unstable point), so every
+        tangent is factorised by Cholesky first, LDL^T where that fails.
     detect_events : bool
         Detect and locate limit and bifurcation points.
     critical_rtol : float
@@ -132,6 +136,7 @@ class ContinuationOptions:
     max_angle_deg: float = 45.0
     max_inertia_cutbacks: int = 1
     stability: bool = True
+    definite_branch: bool = False
     detect_events: bool = True
     critical_rtol: float = 1e-6
     locate_tol: float = 1e-8

@@ -52,7 +52,8 @@ class Tracer:
         self.t_created = time.perf_counter()
         self.pb = Problem(system, control, o.fixed_lam, o.fixed_mu, self.timer, o.linear_solver)
         # Cholesky first while the path is stable: where it succeeds there is no negative eigenvalue
-        self.pb.definite_hint = lambda: self.o.stability and getattr(self, "n_neg", -1) == 0
+        self.pb.definite_hint = lambda: (getattr(self, "n_neg", -1) == 0 if self.o.stability
+                                         else self.o.definite_branch)
         #: ``(u, K, g, F)`` of the last point analysed: what follows it (event location) reuses them
         self.last_linearisation = None
         self.free = system.free
