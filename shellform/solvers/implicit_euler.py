@@ -217,6 +217,19 @@ class _Trajectory:
         return res
 
 
+def _first_step(h: float, t0: float, t_end: float, o: ImplicitEulerOptions) -> float:
+    """The first time step, after checking the time inputs."""
+    if not (np.isfinite(h) and h > 0):
+        raise ModelError(f"implicit Euler: time step must be positive, got {h}")
+    if not (np.isfinite(t_end) and t_end > t0):
+        raise ModelError(f"implicit Euler: t_end must be after t0 = {t0}, got {t_end}")
+    if o.first_step is None:
+        return h
+    if not (np.isfinite(o.first_step) and o.first_step > 0):
+        raise ModelError(f"implicit Euler: first_step must be positive, got {o.first_step}")
+    return min(h, float(o.first_step))
+
+
 def implicit_euler(
     system,
     h: float,
@@ -261,20 +274,13 @@ def implicit_euler(
     """
     started = time.perf_counter()
     o = with_overrides(ImplicitEulerOptions, options, overrides, "implicit Euler")
-    if not (np.isfinite(h) and h > 0):
-        raise ModelError(f"implicit Euler: time step must be positive, got {h}")
-    if not (np.isfinite(t_end) and t_end > t0):
-        raise ModelError(f"implicit Euler: t_end must be after t0 = {t0}, got {t_end}")
+    dt = _first_step(h, t0, t_end, o)
     mass, damping = _mass_and_damping(system, o)
     stepper = Stepper(system, o, mass, damping)
     min_step = h / 1024.0 if o.min_step is None else float(o.min_step)
     q = stepper.supports(system.state(base=q0), t0)
     v = np.zeros(system.n_dof) if v0 is None else np.array(v0, dtype=float)
-    t, dt = t0, h
-    if o.first_step is not None:
-        if not (np.isfinite(o.first_step) and o.first_step > 0):
-            raise ModelError(f"implicit Euler: first_step must be positive, got {o.first_step}")
-        dt = min(h, float(o.first_step))
+    t = t0
     hold = 0  # accepted steps left before the step may grow again
     run = _Trajectory(q, v, t, mass, o.save_every, started)
     while t_end - t > 1e-9 * h:
