@@ -1,5 +1,8 @@
 """Structured quad grids from gmsh and the NumPy B-spline evaluator."""
 
+import subprocess
+import sys
+
 import gmsh
 import numpy as np
 import pytest
@@ -141,3 +144,31 @@ def test_gmsh_is_released_after_errors_and_input_is_checked():
     with pytest.raises(ModelError, match="control points"):
         BSplineSurface(np.zeros((3, 3)))
     assert not gmsh.isInitialized()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the signal mask from /proc")
+@pytest.mark.parametrize("where", ["main", "thread"])
+def test_meshing_leaves_a_broken_pipe_an_error_not_the_end_of_the_process(where):
+    """gmsh's first start sets SIGPIPE back to the default that kills the process; the session undoes it.
+
+    Only the first start in a process does it, so the check runs in a fresh interpreter.
+    """
+    code = f"""
+import threading
+from shellform.geometry import rectangle_grid
+
+def ignored():
+    mask = next(line for line in open("/proc/self/status") if line.startswith("SigIgn")).split()[1]
+    return bool(int(mask, 16) & (1 << 12))
+
+assert ignored()
+if {where!r} == "main":
+    rectangle_grid(1.0, 1.0, 2, 2)
+else:
+    thread = threading.Thread(target=rectangle_grid, args=(1.0, 1.0, 2, 2))
+    thread.start()
+    thread.join()
+print(ignored())
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["True"]

@@ -15,6 +15,8 @@ fails.
 from __future__ import annotations
 
 import contextlib
+import signal
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -163,7 +165,11 @@ def gmsh_session(name: str = "shellform"):
 
     own = not gmsh.isInitialized()
     if own:
+        pipe = getattr(signal, "SIGPIPE", None)
+        previous = signal.getsignal(pipe) if pipe is not None else None
         gmsh.initialize(readConfigFiles=False, interruptible=False)
+        if pipe is not None:
+            _restore_signal(pipe, previous)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.Verbosity", 1)
@@ -175,6 +181,30 @@ def gmsh_session(name: str = "shellform"):
         finally:
             if own:
                 gmsh.finalize()
+
+
+def _restore_signal(number, previous):
+    """Give a signal back the disposition it had before gmsh started.
+
+    gmsh's first initialisation sets SIGPIPE back to the system default, which
+    ends the process. Python ignores it, so that a write to a pipe or a socket
+    whose reader has gone raises an error instead: a process pool whose worker
+    died, a client that hung up. gmsh changes the disposition behind Python's
+    back, so Python still reports the old one, and setting it again is what
+    restores it. Outside the main thread Python may not set a signal; there the
+    C library does it, for the one case that matters (the signal ignored).
+    """
+    if previous is None:
+        return
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(number, previous)
+    elif previous == signal.SIG_IGN:
+        import ctypes
+
+        libc = ctypes.CDLL(None)
+        libc.signal.restype = ctypes.c_void_p
+        libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
+        libc.signal(int(number), int(signal.SIG_IGN))
 
 
 # ---------------------------------------------------------------------------
