@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from .protocol import InputError
+
+#: points closer than this times the size of the model are one node (mesh vertices, ends of lines)
+JOIN_TOLERANCE = 1.0e-6
+
 
 @dataclass
 class Built:
@@ -17,6 +23,9 @@ class Built:
     #: scene key prefix -> input name, to name the input in a scene error
     inputs: dict = field(default_factory=dict)
     context: dict = field(default_factory=dict)
+    #: files the scene reads (file name -> a function writing it to a path): the server writes them into
+    #: the request's own folder and reads the scene from there, so no input ever names a path
+    files: dict[str, Callable[[Path], None]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -33,6 +42,17 @@ class Component:
                 "Category": "shellform", "Subcategory": "analysis",
                 "Inputs": [p.describe() for p in self.inputs], "Outputs": [p.describe(True) for p in self.outputs],
                 "InputNames": [p.name for p in self.inputs], "OutputNames": [p.name for p in self.outputs]}
+
+
+def one_source(values: dict, names: tuple[str, ...], what: str) -> str:
+    """The one input of ``names`` that is given (the sources of a component's geometry, ``what`` says each)."""
+    given = [n for n in names if values.get(n) is not None]
+    choices = " or ".join(names) if len(names) < 3 else f"{', '.join(names[:-1])} or {names[-1]}"
+    if not given:
+        raise InputError(choices, f"one is required: {what}")
+    if len(given) > 1:
+        raise InputError(given[1], f"give only one of {choices}; got {given[0]} and {given[1]}")
+    return given[0]
 
 
 def nearest_nodes(nodes: np.ndarray, points, tol: float, name: str) -> list[int]:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
-from .component import Built, Component, cell_field, line_pairs, nearest_nodes, report
+from .component import Built, Component, cell_field, line_pairs, nearest_nodes, one_source, report
+from .nets import MESH_FILE, NetNodes, check_mesh_groups, mesh_net, support_curves, support_points
 from .protocol import InputError, Param
 
 #: samples of a boundary curve that is not a polyline
@@ -104,7 +105,10 @@ def planform_geometry(curve, divisions, divisions_y, holes=None, edge_length=Non
 _FORM_INPUTS = (
     Param("Boundary", "Curve", "Planform outline in a horizontal plane: a rectangle with sides along x and y, a "
           "circle or an ellipse with axes along x and y (a structured grid), or any other closed curve (meshed "
-          "by gmsh as quads)", "m"),
+          "by gmsh as quads). Give this or Mesh", "m", optional=True),
+    Param("Mesh", "Mesh", "The net itself instead of an outline: a mesh of quads and/or triangles whose edges are "
+          "the ropes (vertices closer than 1e-6 of its size are one node). Give this or Boundary", "m",
+          optional=True),
     Param("Holes", "Curve", "Closed outlines of holes in the planform (meshed by gmsh)", "m", many=True,
           optional=True),
     Param("Divisions", "Integer", "Quads per side of the grid (rectangle: along x; circle, ellipse: of the mapped "
@@ -114,10 +118,13 @@ _FORM_INPUTS = (
           optional=True, key="geometry.edge_length"),
     Param("DivisionsY", "Integer", "Rectangle: quads along y (default: Divisions)", optional=True,
           key="geometry.n_j"),
-    Param("Supports", "Text", "Supported node sets of the grid, comma separated: boundary, corners, south, east, "
-          "north, west, sw, se, ne, nw; empty for none", default="boundary", key="supports.groups"),
-    Param("SupportPoints", "Point", "Further supported nodes: grid nodes at these points", "m", many=True,
-          optional=True, key="supports.nodes"),
+    Param("Supports", "Text", "Supported node sets of the net, comma separated: of a grid boundary, corners, south, "
+          "east, north, west, sw, se, ne, nw; of an outline meshed by gmsh boundary, corners, outer, side_K, hole_H; "
+          "of a Mesh boundary, corners; empty for none", default="boundary", key="supports.groups"),
+    Param("SupportPoints", "Point", "Further supported nodes: the nodes at these points (within a quarter of the "
+          "shortest edge)", "m", many=True, optional=True, key="supports.nodes"),
+    Param("SupportCurves", "Curve", "Further supported nodes: the nodes on these curves (within a quarter of the "
+          "shortest edge)", "m", many=True, optional=True, key="supports.curve"),
     Param("Slack", "Number", "Slack coefficient sc: rest length = (1 + sc) x planform edge length", default=0.0,
           key="ropes.slack"),
     Param("MassPerLength", "Number", "Rope mass, the load of the form", "kg/m", default=1.0,
@@ -142,33 +149,17 @@ def _text_list(value) -> list[str]:
 
 
 def form_scene(v: dict, analysis: str) -> Built:
-    """The planform scene of the form-finding inputs."""
-    from ..scene.format import SCENE
-    from ..scene.schema import check_table
-    from ..errors import SceneError
-
-    if v["Boundary"] is None:
-        raise InputError("Boundary", "is required")
-    geometry = planform_geometry(v["Boundary"], v["Divisions"], v["DivisionsY"], v["Holes"], v["EdgeLength"])
-    supports = []
-    groups = _text_list(v["Supports"])
-    if groups:
-        supports.append({"groups": groups})
-    if v["SupportPoints"]:
-        from ..mra.case import build_grid
-
-        try:
-            checked = check_table("geometry", geometry, SCENE.keys["geometry"])
-        except SceneError as exc:
-            raise InputError(_FORM_KEYS.get(exc.key, "Divisions"), str(exc)) from None
-        plain = {k: (w.tolist() if isinstance(w, np.ndarray) else w) for k, w in checked.items() if w is not None}
-        if geometry["type"] == "polygon":  # as the scene passes it: the holes' points
-            plain["holes"] = [h["points"] for h in geometry["holes"]]
-        grid = build_grid(plain)
-        spacing = np.linalg.norm(np.diff(grid.nodes[grid.quads[:, :2]], axis=1), axis=2).min()
-        supports.append({"nodes": nearest_nodes(grid.nodes, v["SupportPoints"], 0.25 * spacing, "SupportPoints")})
-    if not supports:
-        raise InputError("Supports", "the net needs supports: give grid node sets or SupportPoints")
+    """The scene of the form-finding inputs: a net on a planform outline (Boundary) or a given net (Mesh)."""
+    source = one_source(v, ("Boundary", "Mesh"), "the planform outline to mesh (Boundary) or the net (Mesh)")
+    files, keys = {}, dict(_FORM_KEYS)
+    if source == "Mesh":
+        geometry, nodes, write = _mesh_geometry(v)
+        files[MESH_FILE] = write
+        keys.update({"geometry": "Mesh", "geometry.file": "Mesh", "geometry.merge_tolerance": "Mesh"})
+    else:
+        geometry = planform_geometry(v["Boundary"], v["Divisions"], v["DivisionsY"], v["Holes"], v["EdgeLength"])
+        nodes = None
+    supports = _supports(v, geometry, nodes)
     scene = {
         "title": "from Grasshopper",
         "geometry": geometry,
@@ -177,7 +168,56 @@ def form_scene(v: dict, analysis: str) -> Built:
         "masses": {"node_mass": v["NodeMass"]},
         "analysis": {"type": analysis, "relaxation": {"scheme": v["Scheme"], "checkpoint_interval": 1.0e6}},
     }
-    return Built(scene, dict(_FORM_KEYS))
+    return Built(scene, keys, files=files)
+
+
+def _mesh_geometry(v: dict):
+    """The mesh-file geometry of the Mesh input, the nodes it will have and the writer of its file."""
+    for name in ("Holes", "EdgeLength", "DivisionsY"):
+        if v[name] is not None:
+            raise InputError(name, "applies to a Boundary outline; the Mesh is the net as given")
+    net = mesh_net(v["Mesh"])
+    check_mesh_groups(_text_list(v["Supports"]))
+    return net.geometry, net.nodes, net.write
+
+
+def _supports(v: dict, geometry: dict, nodes: NetNodes | None) -> list[dict]:
+    """The supports entries of the inputs: named sets, nodes at points, nodes on curves."""
+    supports = []
+    groups = _text_list(v["Supports"])
+    if groups:
+        supports.append({"groups": groups})
+    if (v["SupportPoints"] or v["SupportCurves"]) and nodes is None:
+        nodes = _planform_nodes(geometry)
+    if v["SupportPoints"]:
+        if geometry["type"] == "file":
+            supports.append(support_points(nodes, v["SupportPoints"]))
+        else:  # grid node numbers, as a scene of the planform gives them
+            supports.append({"nodes": nearest_nodes(nodes.nodes, v["SupportPoints"], nodes.reach, "SupportPoints")})
+    if v["SupportCurves"]:
+        supports += support_curves(nodes, v["SupportCurves"])
+    if not supports:
+        raise InputError("Supports", "the net needs supports: give node sets, SupportPoints or SupportCurves")
+    return supports
+
+
+def _planform_nodes(geometry: dict) -> NetNodes:
+    """The grid of a planform's geometry keys, as the scene will build it: its nodes and shortest edge."""
+    from ..errors import SceneError
+    from ..mra.case import build_grid
+    from ..scene.format import SCENE
+    from ..scene.schema import check_table
+
+    try:
+        checked = check_table("geometry", geometry, SCENE.keys["geometry"])
+    except SceneError as exc:
+        raise InputError(_FORM_KEYS.get(exc.key, "Divisions"), str(exc)) from None
+    plain = {k: (w.tolist() if isinstance(w, np.ndarray) else w) for k, w in checked.items() if w is not None}
+    if geometry["type"] == "polygon":  # as the scene passes it: the holes' points
+        plain["holes"] = [h["points"] for h in geometry["holes"]]
+    grid = build_grid(plain)
+    spacing = float(np.linalg.norm(np.diff(grid.nodes[grid.quads[:, :2]], axis=1), axis=2).min())
+    return NetNodes(grid.nodes, spacing)
 
 
 def _rhino_mesh(points, *faces):

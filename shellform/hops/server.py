@@ -35,7 +35,7 @@ from collections.abc import Callable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
-from ..errors import SceneError, ShellformError
+from ..errors import MechanismError, SceneError, ShellformError
 from .components import COMPONENTS, Component
 from .protocol import InputError, decode_tree, encode_tree
 
@@ -131,7 +131,6 @@ class HopsApp:
 
     def _run(self, component: Component, trees: list, stop) -> dict:
         from ..api import run
-        from ..scene import parse_scene
 
         given = {str(t.get("ParamName")): t for t in trees}
         known = {p.name: p for p in component.inputs}
@@ -143,18 +142,20 @@ class HopsApp:
             value = decode_tree(p, given[p.name]) if p.name in given else None
             values[p.name] = p.default if value is None else value
         built = component.build(values)
+        folder = Path(tempfile.mkdtemp(prefix=f"{component.name}-", dir=self.root))
         try:
-            scene = parse_scene(_given(built.scene))
-        except SceneError as exc:
-            raise InputError(_input_of(exc.key, built.inputs) or component.name, str(exc)) from None
-        with self._run_lock:
-            folder = Path(tempfile.mkdtemp(prefix=f"{component.name}-", dir=self.root))
-            try:
-                result = run(scene, out=folder, progress=self._watch(stop))
+            scene = _parse(built, folder / "input", component.name)
+            with self._run_lock:
+                try:
+                    result = run(scene, out=folder / "run", progress=self._watch(stop))
+                except (SceneError, MechanismError) as exc:
+                    # found while building or solving the model: name the input it comes from, as a check would
+                    key = getattr(exc, "key", "supports")
+                    raise InputError(_input_of(key, built.inputs) or component.name, str(exc)) from None
                 self.counts["runs"] += 1
                 outputs = component.reply(result, values, built.context)
-            finally:
-                shutil.rmtree(folder, ignore_errors=True)
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
         reply = {"values": [encode_tree(p, outputs[p.name]) for p in component.outputs if p.name in outputs],
                  "errors": [], "warnings": list(result.warnings)}
         if not result.converged:
@@ -177,6 +178,20 @@ class HopsApp:
                 raise RunStopped("stopped: the client closed the connection")
 
         return progress
+
+
+def _parse(built, folder: Path, name: str) -> dict:
+    """The checked scene of a built component: its files written into ``folder``, which it is read from."""
+    from ..scene import parse_scene
+
+    if built.files:
+        folder.mkdir()
+        for file, write in built.files.items():
+            write(folder / file)
+    try:
+        return parse_scene(_given(built.scene), base_dir=folder)
+    except SceneError as exc:
+        raise InputError(_input_of(exc.key, built.inputs) or name, str(exc)) from None
 
 
 def _given(data):
