@@ -127,3 +127,110 @@ def test_bad_mesh_inputs_name_the_input(server):
     assert _error(server, request("FormFind", Mesh=rhino3dm.Mesh())).startswith("Mesh: has no faces")
     # the laths of a gridshell on a found form follow straight chains of quad edges: no triangles
     assert _error(server, request("Gridshell", Mesh=mesh)).startswith("Mesh: scene key 'geometry.file': the laths")
+
+
+# -- lines as the rods of a gridshell ------------------------------------------------------------
+
+
+def polyline_curve(points):
+    pl = rhino3dm.Polyline(len(points))
+    for p in np.asarray(points, dtype=float).tolist():
+        pl.Add(*p)
+    return rhino3dm.PolylineCurve(pl)
+
+
+def dome_grid(n: int = 5, span: float = 4.0, rise: float = 0.8) -> np.ndarray:
+    """Points (n, n, 3) of a square grid lifted onto a sine dome."""
+    s = np.linspace(0.0, span, n)
+    x, y = np.meshgrid(s, s, indexing="ij")
+    z = rise * np.sin(np.pi * x / span) * np.sin(np.pi * y / span)
+    return np.stack([x, y, z], axis=2)
+
+
+def test_gridshell_of_lines_matches_the_rod_scene(server):
+    """Polylines along both families of a dome's grid lines: rods sharing their crossing nodes, pinned at their
+    ends, under their weight and node masses, traced to the first critical point as the rod scene of the same
+    nodes and [[rods.lines]] is."""
+    n = 5
+    grid = dome_grid(n)
+    curves = [polyline_curve(grid[i, :]) for i in range(n)] + [polyline_curve(grid[:, j]) for j in range(n)]
+    radius, density, node_mass, mass_per_length = 0.02, 7850.0, 50.0, 3.0
+    status, text = post(server, request("Gridshell", Lines=curves, Radius=radius, Density=density,
+                                        NodeMass=node_mass, MassPerLength=mass_per_length, RestShape="found"))
+    reply, out = outputs(text)
+    assert status == 200 and reply["errors"] == [], reply["errors"]
+    idx = np.arange(n * n).reshape(n, n)
+    ends = np.unique(np.concatenate([idx[0], idx[-1], idx[:, 0], idx[:, -1]]))
+    ref = sf.run(parse_scene({
+        "nodes": {"coordinates": grid.reshape(-1, 3).tolist()},
+        "rods": {"E": 210.0e9, "radius": radius, "rest_shape": "found",
+                 # MassPerLength is the rods' weight per metre besides their density's
+                 "density": density + mass_per_length / (np.pi * radius**2),
+                 "lines": [{"nodes": idx[i].tolist()} for i in range(n)] + [{"nodes": idx[:, j].tolist()}
+                                                                            for j in range(n)]},
+        "masses": {"node_mass": node_mass}, "supports": [{"nodes": ends.tolist()}], "gravity": {"scaled": True},
+        "analysis": {"type": "continuation", "continuation": {"control": "load", "parameter_max": 100.0,
+                                                              "max_steps": 60, "on_bifurcation": "stop"}}}))
+    event = ref.events[0]
+    assert out["CriticalLoadFactor"] == [pytest.approx(event["lam"], rel=1e-12)]
+    assert out["CriticalKind"] == [event["kind"]]
+    crit = ref.mesh(event["file"])
+    np.testing.assert_allclose(np.array(out["Rods"]), lines_of(crit), rtol=0, atol=1e-12 * 4.0)
+    moved = np.array(out["BucklingMode"]) - np.array(out["Rods"])
+    assert np.linalg.norm(moved, axis=2).max() == pytest.approx(0.1, rel=1e-9)
+    scale = np.abs(crit.cell_data["axial_force"][0]).max()
+    np.testing.assert_allclose(out["AxialForce"], crit.cell_data["axial_force"][0], rtol=0, atol=1e-10 * scale)
+    moment = np.abs(crit.cell_data["bending_moment"][0]).max()
+    np.testing.assert_allclose(out["BendingMoment"], crit.cell_data["bending_moment"][0], rtol=0,
+                               atol=1e-10 * moment)
+
+
+def test_a_smooth_curve_is_divided_and_joined_where_points_meet():
+    """A quarter circle between two lines: divided into equal segments no longer than SegmentLength, its ends the
+    lines' ends (one node each)."""
+    from shellform.hops.rod_lines import rod_lines
+
+    arc = rhino3dm.Arc(rhino3dm.Circle(2.0), np.pi / 2).ToNurbsCurve()
+    legs = [rhino3dm.LineCurve(rhino3dm.Point3d(2.0, 0.0, 0.0), rhino3dm.Point3d(2.0, 0.0, -1.0)),
+            [[0.0, 2.0, 0.0], [0.0, 2.0, -1.0]]]  # a line item as Hops decodes it
+    lines = rod_lines([arc] + legs, 0.3)
+    chain = lines.chains[0]
+    assert len(chain) == int(np.ceil(np.pi / 0.3)) + 1
+    step = np.linalg.norm(np.diff(lines.nodes[chain], axis=0), axis=1)
+    assert step.max() <= 0.3 and np.ptp(step) < 1e-3 * step.max()
+    assert len(lines.nodes) == len(chain) + 2  # the legs' tops are the arc's ends
+    assert {lines.chains[1][0], lines.chains[2][0]} == {chain[0], chain[-1]}
+    np.testing.assert_allclose(np.linalg.norm(lines.nodes[chain, :2], axis=1), 2.0, rtol=1e-9)
+
+
+def test_bad_lines_name_the_input_and_the_problem(server):
+    grid = dome_grid(4)
+    curves = [polyline_curve(grid[i, :]) for i in range(4)] + [polyline_curve(grid[:, j]) for j in range(4)]
+    point = rhino3dm.Point3d
+    assert _error(server, request("Gridshell", Lines=curves[:1])).startswith(
+        "Lines: got 1 curve; a gridshell needs at least two rods")
+    zero = rhino3dm.LineCurve(point(1.0, 1.0, 0.0), point(1.0, 1.0, 0.0))
+    assert _error(server, request("Gridshell", Lines=curves + [zero])) == "Lines: item 8 has zero length"
+    apart = polyline_curve(grid[0, :] + [10.0, 0.0, 0.0])
+    assert _error(server, request("Gridshell", Lines=curves + [apart])).startswith(
+        "Lines: the curves are not connected into one structure: 2 separate parts (item 8 is not joined")
+    corner = grid[0, 0].tolist()
+    assert "a mechanism" in _error(server, request("Gridshell", Lines=curves, Supports="", SupportPoints=[corner]))
+    assert _error(server, request("Gridshell", Lines=curves, Supports="", SupportPoints=[corner, grid[3, 3].tolist()])
+                  ).startswith("Supports: the supports are 2 nodes on one line: the gridshell can turn about them")
+    # a linkage of single-edge rods: the tangent is singular at the start
+    square = [rhino3dm.LineCurve(point(*a), point(*b)) for a, b in
+              (((0, 0, 0), (1, 0, 0)), ((1, 0, 0), (1, 1, 0)), ((1, 1, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, 0)))]
+    assert _error(server, request("Gridshell", Lines=square, Supports="", SupportPoints=[[0, 0, 0], [1, 0, 0],
+                                                                                        [0, 1, 0]])).startswith(
+        "Supports: the tangent is singular at the starting point")
+    assert _error(server, request("Gridshell", Lines=curves, Boundary=rectangle(0.0, 0.0, 4.0, 4.0))) == (
+        "Lines: give only one of Boundary, Mesh or Lines; got Boundary and Lines")
+    assert _error(server, request("Gridshell", Lines=curves, Supports="corners")).startswith(
+        "Supports: lines have no node set 'corners'")
+    assert _error(server, request("Gridshell", Lines=curves, Joints="glue")).startswith(
+        "Joints: scene key 'rods.joints': got 'glue'")
+    assert _error(server, request("Gridshell", Lines=curves, Radius=-1.0)).startswith("Radius: scene key 'rods.radius'")
+    assert _error(server, request("Gridshell", Lines=curves, SegmentLength=0.0)).startswith("SegmentLength: got 0.0")
+    assert _error(server, request("Gridshell", Boundary=rectangle(0.0, 0.0, 4.0, 4.0), SegmentLength=0.5)) == (
+        "SegmentLength: applies to Lines")

@@ -356,7 +356,13 @@ LENGTHS = Component(
 
 # -- Gridshell ----------------------------------------------------------------------------------
 
-_GRIDSHELL_INPUTS = _FORM_INPUTS + (
+_GRIDSHELL_INPUTS = _FORM_INPUTS[:2] + (
+    Param("Lines", "Curve", "The rods as given instead of a found net: lines, polylines or curves, one rod each, "
+          "joined where their points meet (within 1e-6 of the model's size). Give this, Boundary or Mesh", "m",
+          many=True, optional=True),
+    Param("SegmentLength", "Number", "Lines: curves that are not polylines are divided into segments at most this "
+          "long (default: the model's size / 20); lines and polylines keep their vertices", "m", optional=True),
+) + _FORM_INPUTS[2:] + (
     Param("Radius", "Number", "Radius of the rods' solid circular section", "m", default=0.02, key="rods.radius"),
     Param("E", "Number", "Young's modulus of the rods", "Pa", default=210.0e9, key="rods.E"),
     Param("G", "Number", "Shear modulus of the rods (default E / 2.6)", "Pa", optional=True, key="rods.G"),
@@ -364,6 +370,11 @@ _GRIDSHELL_INPUTS = _FORM_INPUTS + (
           key="rods.density"),
     Param("RestShape", "Text", "Rods straight when unstressed (bent into the form) or stress-free in it: "
           "straight or found", default="straight", key="rods.rest_shape"),
+    Param("Joints", "Text", "Lines: rods meeting at a node share it (shared) or each has its own node, tied by a "
+          "stiff spring (penalty); default shared", optional=True, key="rods.joints"),
+    Param("JointStiffness", "Number", "Rotational spring on the angle between two rods at every crossing (the "
+          "scissor stiffness of a tightened joint); default 0: free to turn", "N m/rad", optional=True,
+          key="rods.joint_rotational_stiffness"),
     Param("LoadFactorMax", "Number", "Stop tracing at this load factor", default=100.0,
           key="analysis.buckling.load_factor_max"),
     Param("MaxSteps", "Integer", "Continuation steps before stopping", default=60, key="analysis.buckling.max_steps"),
@@ -372,10 +383,17 @@ _GRIDSHELL_INPUTS = _FORM_INPUTS + (
 
 
 def _gridshell_scene(v: dict) -> Built:
+    from .rod_lines import lines_scene
+
+    source = one_source(v, ("Boundary", "Mesh", "Lines"), "the planform outline to mesh (Boundary), the net "
+                        "(Mesh) or the rods (Lines)")
+    if source == "Lines":
+        return lines_scene(v)
+    if v["SegmentLength"] is not None:
+        raise InputError("SegmentLength", "applies to Lines")
     built = form_scene(v, "form_and_buckle")
-    rods = {"radius": v["Radius"], "E": v["E"], "density": v["Density"], "rest_shape": v["RestShape"]}
-    if v["G"] is not None:
-        rods["G"] = v["G"]
+    rods = {"radius": v["Radius"], "E": v["E"], "density": v["Density"], "rest_shape": v["RestShape"],
+            "G": v["G"], "joints": v["Joints"], "joint_rotational_stiffness": v["JointStiffness"]}
     built.scene["rods"] = rods
     built.scene["analysis"]["buckling"] = {"load_factor_max": v["LoadFactorMax"], "max_steps": v["MaxSteps"]}
     built.inputs.update({p.key: p.name for p in _GRIDSHELL_INPUTS if p.key})
@@ -383,20 +401,20 @@ def _gridshell_scene(v: dict) -> Built:
 
 
 def _gridshell_reply(result, v, context) -> dict:
-    b = result.summary.get("buckling") or {}
     events = result.events
     out = {"Converged": result.converged,
-           "Report": report(result.summary, ("converged", "message", "buckling", "warnings", "wall_time_s"))}
+           "Report": report(result.summary, ("converged", "message", "buckling", "events", "steps", "warnings",
+                                             "wall_time_s"))}
     if events:
         crit = result.mesh(events[0]["file"])
         lines = crit.cells_dict["line"]
         x = crit.points
-        out["CriticalLoadFactor"] = float(b["critical_load_factor"])
-        out["CriticalKind"] = str(b["critical_kind"])
+        out["CriticalLoadFactor"] = float(events[0]["lam"])
+        out["CriticalKind"] = str(events[0]["kind"])
         out["BucklingMode"] = line_pairs(x + float(v["ModeScale"]) * crit.point_data["mode"], lines)
         fields = {k: cell_field(crit, k) for k in ("axial_force", "bending_moment")}
-    else:
-        states = result.states("buckling_path.xdmf")
+    else:  # the last traced state
+        states = result.states("path.xdmf" if "lines" in context else "buckling_path.xdmf")
         x = states.positions[-1]
         lines = states.cells_nodes
         fields = {k: states.cells[k][-1] if k in states.cells else None for k in ("axial_force", "bending_moment")}
