@@ -13,10 +13,14 @@ the member group and the member number in the message.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import MechanismError, ModelError
+
+if TYPE_CHECKING:
+    from .geometry.space_curve import SpaceCurve
 
 AXES = {"x": 0, "y": 1, "z": 2}
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
@@ -41,6 +45,19 @@ class Slider:
     held: np.ndarray
     stiffness_ratio: float
     origin: np.ndarray | None = None
+    stiffness: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class CurveSlider:
+    """Nodes that slide along one curve: the curve's shift per node (so that it passes through the node's
+    reference position), and the springs' stiffness (None: ``stiffness_ratio`` times the stiffest member at
+    each node)."""
+
+    nodes: np.ndarray
+    curve: SpaceCurve
+    shift: np.ndarray
+    stiffness_ratio: float
     stiffness: np.ndarray | None = None
 
 
@@ -178,6 +195,7 @@ class Structure:
         self.point_mass = np.zeros(len(nodes))
         self.gravity: np.ndarray | None = None
         self.sliders: list[Slider] = []
+        self.curve_sliders: list[CurveSlider] = []
 
     # -- sizes and numbering -------------------------------------------------
     @property
@@ -339,6 +357,37 @@ class Structure:
         d = d / np.linalg.norm(d)
         held = np.outer(d, d) if kind == "plane" else np.eye(3) - np.outer(d, d)
         self.sliders.append(Slider(nodes, held, float(stiffness_ratio)))
+
+    def slide_along(self, nodes, curve, stiffness_ratio: float = SLIDE_STIFFNESS_RATIO,
+                    tolerance: float | None = None) -> None:
+        """Let ``nodes`` slide along ``curve`` (a :class:`~shellform.geometry.space_curve.SpaceCurve`, or points
+        it passes through), an arch or a ring beam.
+
+        Held by stiff springs to the curve's nearest point
+        (:class:`~shellform.effects.curve_sliding.CurveSupports`), ``stiffness_ratio`` times the stiffest
+        member at each node when the system is built. Every node must lie on the curve, within
+        ``tolerance`` (default 1e-6 times the structure's size, at least 1e-6 m); the curve is then moved
+        by that little so that it passes through the node exactly, as a plane or line does.
+        """
+        from .geometry.space_curve import SpaceCurve
+
+        nodes = _as_index_array(np.atleast_1d(nodes), self.n_nodes, "sliding support")
+        if not isinstance(curve, SpaceCurve):
+            curve = SpaceCurve.through(curve, "sliding support curve")
+        if not (np.isfinite(stiffness_ratio) and stiffness_ratio > 0):
+            raise ModelError(f"sliding support: stiffness_ratio must be a positive number, got {stiffness_ratio!r}")
+        x = self.nodes[nodes]
+        t, _ = curve.nearest(x)
+        shift = x - curve(t)
+        if tolerance is None:
+            tolerance = 1e-6 * max(float(np.ptp(self.nodes, axis=0).max()), 1.0)
+        far = np.linalg.norm(shift, axis=1)
+        if far.max() > tolerance:
+            k = int(np.argmax(far))
+            raise ModelError(f"sliding support: node {int(nodes[k])} at {np.round(x[k], 6).tolist()} is "
+                             f"{far[k]:.4g} m from its curve (tolerance {tolerance:.3g} m); give the curve through "
+                             "the points the nodes lie on, or a larger tolerance")
+        self.curve_sliders.append(CurveSlider(nodes, curve, shift, float(stiffness_ratio)))
 
     def prescribe(self, nodes, direction) -> None:
         """Prescribe the motion of ``nodes``: displacement = ``parameter * direction``.

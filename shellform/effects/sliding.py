@@ -1,5 +1,7 @@
 """Sliding supports on tilted planes and lines: a stiff spring across the plane or line.
 
+Curves (arches, rings) are :mod:`~shellform.effects.curve_sliding`.
+
 A node held along some coordinate axes and free along the others is a
 support of its own (fixed DOFs). A node that slides on a plane or along a
 line of any direction is held by the energy
@@ -51,6 +53,10 @@ class SlidingSupports(Effect):
         self._pattern = element_pattern(self.dofs)
         self._values = (self.k[:, None, None] * self.P).ravel()
 
+    def scaled(self, factor: float) -> "SlidingSupports":
+        """The same supports with ``factor`` times the springs' stiffness."""
+        return SlidingSupports(self.n_dof, self.nodes, self.P, self.x0, factor * self.k)
+
     def _forces(self, q):
         return self.k[:, None] * np.einsum("nij,nj->ni", self.P, q[self.dofs] - self.x0)
 
@@ -75,24 +81,36 @@ class SlidingSupports(Effect):
         return {"offset": off, "reaction": self.k * off}
 
 
-def sliding_effects(structure) -> list[SlidingSupports]:
-    """The structure's sliding supports as one effect (none without), each spring its ratio times the
-    stiffest member ``EA / L`` at its node."""
+def stiffest_member(structure, nodes) -> np.ndarray:
+    """The stiffest member ``EA / L`` at each of ``nodes``: what a support's spring is a multiple of."""
     from ..errors import ModelError
 
-    if not structure.sliders:
-        return []
     stiff = np.zeros(structure.n_nodes)
     for g in structure.groups:
         np.maximum.at(stiff, g.connectivity.ravel(), np.repeat(g.EA / g.rest_length, 2))
-    nodes = np.concatenate([s.nodes for s in structure.sliders])
-    given = np.concatenate([np.full(len(s.nodes), np.nan) if s.stiffness is None else s.stiffness
-                            for s in structure.sliders])
-    lonely = nodes[(stiff[nodes] == 0) & np.isnan(given)]
+    lonely = nodes[stiff[nodes] == 0]
     if lonely.size:
         raise ModelError(f"sliding support: node {int(lonely[0])} has no member, so no stiffness to hold it on its "
-                         "plane or line by")
+                         "plane, line or curve by")
+    return stiff[nodes]
+
+
+def sliding_effects(structure) -> list[Effect]:
+    """The structure's sliding supports: those on planes and lines as one effect (first, if any), then one
+    per curve (:func:`~shellform.effects.curve_sliding.curve_sliding_effects`); each spring its ratio times
+    the stiffest member ``EA / L`` at its node, or the stiffness given."""
+    from .curve_sliding import curve_sliding_effects
+
+    return plane_and_line_effects(structure) + curve_sliding_effects(structure)
+
+
+def plane_and_line_effects(structure) -> list[SlidingSupports]:
+    """The supports sliding on planes and lines as one effect (none without)."""
+    if not structure.sliders:
+        return []
+    k = np.concatenate([s.stiffness if s.stiffness is not None
+                        else s.stiffness_ratio * stiffest_member(structure, s.nodes) for s in structure.sliders])
+    nodes = np.concatenate([s.nodes for s in structure.sliders])
     P = np.concatenate([np.broadcast_to(s.held, (len(s.nodes), 3, 3)) for s in structure.sliders])
-    ratio = np.concatenate([np.full(len(s.nodes), s.stiffness_ratio) for s in structure.sliders])
     x0 = np.concatenate([structure.nodes[s.nodes] if s.origin is None else s.origin for s in structure.sliders])
-    return [SlidingSupports(structure.n_dof, nodes, P, x0, np.where(np.isnan(given), ratio * stiff[nodes], given))]
+    return [SlidingSupports(structure.n_dof, nodes, P, x0, k)]

@@ -22,7 +22,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..assembly import System, build_system
-from ..effects.sliding import sliding_effects
+from ..effects.curve_sliding import curve_sliding_effects
+from ..effects.sliding import plane_and_line_effects
 from ..errors import ModelError
 from ..model import Structure
 from .formfind import FormFindingResult
@@ -114,19 +115,7 @@ def invert(result: FormFindingResult, plane_z: float | None = None) -> InvertedS
     shell.add_bars(net.rope_edges, EA=EA, rest_length=rest, name="members")
     mask = hang.constrained_mask[: 3 * hang.n_nodes]
     shell.fix_dofs(np.flatnonzero(mask))
-    springs = sliding_effects(hang)
-    at = 0
-    for slider in hang.sliders:
-        # the plane or line mirrored with the net; the shell pushes on it where the net pulled, so its
-        # spring (the net's, whatever the shell's members) stretched the other way carries the mirrored
-        # reaction: the point of the plane or line is the hanging one reflected through the node
-        hung = hang.nodes[slider.nodes] if slider.origin is None else slider.origin
-        origin = (2.0 * x[slider.nodes] - hung) * MIRROR
-        origin[:, 2] += 2.0 * plane_z
-        k = springs[0].k[at: at + len(slider.nodes)]
-        at += len(slider.nodes)
-        shell.sliders.append(replace(slider, held=MIRROR[:, None] * slider.held * MIRROR[None, :], origin=origin,
-                                     stiffness=k))
+    _mirror_sliding_supports(hang, shell, x, plane_z)
     system = build_system(shell)
     q = shell.reference_state()
     force = system.member_results(q)["members"]["axial_force"]
@@ -135,3 +124,30 @@ def invert(result: FormFindingResult, plane_z: float | None = None) -> InvertedS
     resid = float(np.linalg.norm(system.residual(q)[system.free]) / max(weight, 1e-300))
     return InvertedShell(structure=shell, system=system, q=q, force=force, reactions=R,
                          equilibrium_residual=resid, plane_z=plane_z)
+
+
+def _mirror_sliding_supports(hang, shell, x, plane_z) -> None:
+    """The net's sliding supports mirrored into the shell, each carrying the mirrored reaction.
+
+    The plane, line or curve is mirrored with the net; the shell pushes on it where the net pulled, so
+    its spring (the net's, whatever the shell's members) is stretched the other way: the plane's or
+    line's point is the hanging one reflected through the node, and a curve's shift per node moves it
+    across the node by twice the net's offset ``r`` (``x - s - c = -r`` mirrored).
+    """
+    springs = plane_and_line_effects(hang)
+    at = 0
+    for slider in hang.sliders:
+        hung = hang.nodes[slider.nodes] if slider.origin is None else slider.origin
+        origin = (2.0 * x[slider.nodes] - hung) * MIRROR
+        origin[:, 2] += 2.0 * plane_z
+        k = springs[0].k[at: at + len(slider.nodes)]
+        at += len(slider.nodes)
+        shell.sliders.append(replace(slider, held=MIRROR[:, None] * slider.held * MIRROR[None, :], origin=origin,
+                                     stiffness=k))
+    q = np.zeros(hang.n_dof)
+    q[: 3 * hang.n_nodes] = x.ravel()
+    lift = np.array([0.0, 0.0, 2.0 * plane_z])
+    for slider, spring in zip(hang.curve_sliders, curve_sliding_effects(hang)):
+        r = spring.nearest(q)[2]
+        shell.curve_sliders.append(replace(slider, curve=slider.curve.transformed(np.diag(MIRROR), lift),
+                                           shift=(spring.shift + 2.0 * r) * MIRROR, stiffness=spring.k))

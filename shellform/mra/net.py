@@ -89,8 +89,20 @@ class HangingNet:
         return float(s.nodal_mass().sum() * g + loads)
 
 
-#: keys of a support entry that let its nodes slide on a tilted plane or line (Structure.slide)
-SLIDE_KEYS = ("slide", "slide_direction", "slide_stiffness_ratio")
+#: keys of a support entry that let its nodes slide on a tilted plane or line (Structure.slide) or along a curve
+#: (Structure.slide_along)
+SLIDE_KEYS = ("slide", "slide_direction", "slide_curve", "slide_stiffness_ratio")
+
+
+def add_sliding_support(structure: Structure, nodes, entry: dict) -> None:
+    """Let ``nodes`` slide as a support entry says: on a plane or line through each node, or along a curve
+    (``slide_curve``, or else the ``curve`` that chose the nodes)."""
+    ratio = entry.get("slide_stiffness_ratio") or SLIDE_STIFFNESS_RATIO
+    if entry["slide"] == "curve":
+        curve = entry.get("slide_curve")
+        structure.slide_along(nodes, entry.get("curve") if curve is None else curve, ratio, entry.get("tolerance"))
+    else:
+        structure.slide(nodes, entry["slide"], entry["slide_direction"], ratio)
 
 
 def support_nodes(grid: QuadGrid | MeshNet, spec: dict | None) -> tuple[np.ndarray, np.ndarray]:
@@ -294,7 +306,7 @@ def hanging_net(grid: QuadGrid | MeshNet, supports: dict | list | None = None, o
     entries = [supports] if supports is None or isinstance(supports, dict) else list(supports)
     for (nodes, _, dofs), e in zip(chosen, entries):
         if (e or {}).get("slide"):
-            s.slide(nodes, e["slide"], e["slide_direction"], e.get("slide_stiffness_ratio") or SLIDE_STIFFNESS_RATIO)
+            add_sliding_support(s, nodes, e)
         else:
             s.fix(nodes, dofs)
     all_dofs = {dofs for _, _, dofs in chosen}

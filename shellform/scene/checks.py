@@ -337,20 +337,28 @@ def check_hemisphere(scene: dict) -> None:
 
 
 def check_slides(data: dict, scene: dict) -> None:
-    """A sliding support names its plane or line, and holds nothing by ``dofs`` besides."""
+    """A sliding support names its plane, line or curve, and holds nothing by ``dofs`` besides."""
     raw = data.get("supports")
     raw = [raw] if isinstance(raw, dict) else list(raw or [])
     for i, (sup, given) in enumerate(zip(scene["supports"], raw)):
-        if sup["slide"] is None:
-            if sup["slide_direction"] is not None:
-                raise SceneError(support_key(scene, i, "slide_direction"), "applies with slide = 'plane' or 'line'")
+        kind = sup["slide"]
+        for key, applies in (("slide_direction", ("plane", "line")), ("slide_curve", ("curve",))):
+            if sup[key] is not None and kind not in applies:
+                raise SceneError(support_key(scene, i, key), "applies with slide = "
+                                 + " or ".join(repr(a) for a in applies))
+        if kind is None:
             continue
-        if sup["slide_direction"] is None:
-            what = "the plane's normal" if sup["slide"] == "plane" else "the line's direction"
-            raise SceneError(support_key(scene, i, "slide_direction"), f"slide = {sup['slide']!r} needs {what}, "
+        if kind == "curve":
+            if sup["slide_curve"] is None and sup["curve"] is None:
+                raise SceneError(support_key(scene, i, "slide_curve"), "slide = 'curve' needs the curve: points "
+                                 "it passes through, for example [[0.0, 0.0, 0.0], [2.0, 0.0, 1.0], [4.0, 0.0, "
+                                 "0.0]] (or the support's own `curve`)")
+        elif sup["slide_direction"] is None:
+            what = "the plane's normal" if kind == "plane" else "the line's direction"
+            raise SceneError(support_key(scene, i, "slide_direction"), f"slide = {kind!r} needs {what}, "
                              "for example [0.0, 0.5, 1.0]")
-        if not np.linalg.norm(sup["slide_direction"]) > 0:
+        elif not np.linalg.norm(sup["slide_direction"]) > 0:
             raise SceneError(support_key(scene, i, "slide_direction"), "got [0, 0, 0]; a direction needs a length")
         if isinstance(given, dict) and "dofs" in given:
-            raise SceneError(support_key(scene, i, "dofs"), "a sliding support holds its nodes on the plane or line "
-                             "only; give either dofs (axis-aligned) or slide, not both")
+            raise SceneError(support_key(scene, i, "dofs"), "a sliding support holds its nodes on the plane, line "
+                             "or curve only; give either dofs (axis-aligned) or slide, not both")

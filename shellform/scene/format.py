@@ -150,19 +150,24 @@ SUPPORTS = Table(
         "box": Key("points", "The nodes inside this box, given by two opposite corners [[x0, y0, z0], [x1, y1, "
                    "z1]].", default=None, unit="m"),
         "curve": Key("points", "The nodes within `tolerance` of this polyline.", default=None, unit="m"),
-        "tolerance": Key("float", "Distance from `curve` (default 1e-6 times the size of the net, at least "
-                         "1e-6 m).", default=None, unit="m", **_NONNEG),
+        "tolerance": Key("float", "Distance from `curve`, and from `slide_curve` (default 1e-6 times the size of "
+                         "the net, at least 1e-6 m).", default=None, unit="m", **_NONNEG),
         "z": Key("float", "Every node at this height (within z_tolerance).", default=None, unit="m"),
         "z_tolerance": Key("float", "Tolerance of z.", default=1.0e-6, unit="m", **_NONNEG),
         "dofs": Key("str", "Fixed components, any of the letters x, y, z; the others slide: 'z' on a horizontal "
                     "plane, 'yz' along a line parallel to x.", default="xyz"),
         "slide": Key("str", "Slide on a plane or along a line of any direction (`slide_direction`) through each "
-                     "node instead of fixing `dofs`: held by a stiff spring across the plane or line, whose force "
-                     "is the reaction.", default=None, choices=("plane", "line")),
+                     "node, or along a curve (`slide_curve`: an arch, a ring beam), instead of fixing `dofs`: "
+                     "held by a stiff spring across the plane, line or curve, whose force is the reaction.",
+                     default=None, choices=("plane", "line", "curve")),
         "slide_direction": Key("vec3", "The plane's normal or the line's direction (any length).", default=None),
-        "slide_stiffness_ratio": Key("float", "The spring across the plane or line as a multiple of the "
-                                     "stiffest member at the node: the node leaves its plane or line by its "
-                                     "reaction over that stiffness.", default=1.0e2, **_POS),
+        "slide_curve": Key("points", "The curve of slide = 'curve': a smooth curve through these points (cubic "
+                           "through four or more, closed when the last point repeats the first; a parabola "
+                           "through three, a segment between two); default the support's `curve`. Every node "
+                           "must lie on it within `tolerance`.", default=None, unit="m"),
+        "slide_stiffness_ratio": Key("float", "The spring across the plane, line or curve as a multiple of the "
+                                     "stiffest member at the node: the node leaves its plane, line or curve by "
+                                     "its reaction over that stiffness.", default=1.0e2, **_POS),
     },
 )
 

