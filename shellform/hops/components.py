@@ -10,9 +10,10 @@ built here never read or write a path a client gave.
 =============  ======================================================================
 component      analysis
 =============  ======================================================================
-FormFind       ``mra``: a hanging net on a planform, relaxed and inverted
+FormFind       ``mra``: a hanging net on a planform or a given mesh, relaxed and inverted
 Lengths        ``mra`` with ``[analysis.lengths]``: rope lengths, classes, conformity
-Gridshell      ``form_and_buckle``: rods on the found form, traced to buckling
+Gridshell      ``form_and_buckle``: rods on the found form, traced to buckling; or
+               ``continuation`` of rods along given lines
 Trace          ``continuation``: a bar or rope structure from lines
 =============  ======================================================================
 """

@@ -1,4 +1,5 @@
-"""The form-finding components: FormFind, Lengths and Gridshell on a planform outline."""
+"""The form-finding components: FormFind, Lengths and Gridshell on a planform outline or a mesh (Gridshell on
+lines: :mod:`.rod_lines`)."""
 
 from __future__ import annotations
 
@@ -120,7 +121,8 @@ _FORM_INPUTS = (
           key="geometry.n_j"),
     Param("Supports", "Text", "Supported node sets of the net, comma separated: of a grid boundary, corners, south, "
           "east, north, west, sw, se, ne, nw; of an outline meshed by gmsh boundary, corners, outer, side_K, hole_H; "
-          "of a Mesh boundary, corners; empty for none", default="boundary", key="supports.groups"),
+          "of a Mesh boundary, corners; of Lines boundary (where a rod ends); empty for none", default="boundary",
+          key="supports.groups"),
     Param("SupportPoints", "Point", "Further supported nodes: the nodes at these points (within a quarter of the "
           "shortest edge)", "m", many=True, optional=True, key="supports.nodes"),
     Param("SupportCurves", "Curve", "Further supported nodes: the nodes on these curves (within a quarter of the "

@@ -79,7 +79,8 @@ def mesh_net(mesh, name: str = "Mesh") -> MeshNet:
     if not np.any(length > tolerance):
         raise InputError(name, "has only faces of zero size")
     geometry = {"type": "file", "file": MESH_FILE, "merge_tolerance": tolerance}
-    return MeshNet(geometry, lambda path: write_mesh_file(mesh, path), NetNodes(points, float(length[length > tolerance].min())))
+    nodes = NetNodes(points, float(length[length > tolerance].min()))
+    return MeshNet(geometry, lambda path: write_mesh_file(mesh, path), nodes)
 
 
 def _cycle(faces: np.ndarray) -> np.ndarray:
