@@ -234,3 +234,8 @@ def test_bad_lines_name_the_input_and_the_problem(server):
     assert _error(server, request("Gridshell", Lines=curves, SegmentLength=0.0)).startswith("SegmentLength: got 0.0")
     assert _error(server, request("Gridshell", Boundary=rectangle(0.0, 0.0, 4.0, 4.0), SegmentLength=0.5)) == (
         "SegmentLength: applies to Lines")
+    # a point where a curve belongs (Hops sends what the wire carries)
+    body = request("Gridshell", Lines=curves)
+    body["values"][0]["InnerTree"]["{0}"].insert(0, {"type": "Rhino.Geometry.Point3d",
+                                                     "data": '{"X": 0.0, "Y": 0.0, "Z": 0.0}'})
+    assert _error(server, body) == "Lines: item 0 is a point or a list, not a line or a curve"

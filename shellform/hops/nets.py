@@ -137,12 +137,15 @@ def centreline(curve, segment_length: float, where: str) -> np.ndarray:
     of at most ``segment_length``."""
     from ..io.rhino_import import curve_points
 
+    name, _, item = where.partition("[")
     if isinstance(curve, list):  # a line item, decoded as its two end points
-        return np.asarray(curve, dtype=float).reshape(2, 3)
+        ends = np.asarray(curve, dtype=float)
+        if ends.shape != (2, 3):
+            raise InputError(name, f"item {item.rstrip(']')} is a point or a list, not a line or a curve")
+        return ends
     if not hasattr(curve, "PointAt"):
-        name, _, item = where.partition("[")
         raise InputError(name, f"item {item.rstrip(']')} is a {type(curve).__name__}, not a curve")
     try:
         return curve_points(curve, segment_length, where)
     except ModelError as exc:
-        raise InputError(where.partition("[")[0], str(exc)) from None
+        raise InputError(name, str(exc)) from None

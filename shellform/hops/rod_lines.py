@@ -102,7 +102,7 @@ def _size(curves: list) -> float:
     pts = []
     for k, curve in enumerate(curves):
         if isinstance(curve, list):
-            pts.append(np.asarray(curve, dtype=float).reshape(-1, 3))
+            pts.append(centreline(curve, 1.0, f"Lines[{k}]"))
         elif hasattr(curve, "PointAt"):
             d = curve.Domain
             pts.append(np.array([[p.X, p.Y, p.Z] for p in (curve.PointAt(float(t)) for t in

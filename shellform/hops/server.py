@@ -10,7 +10,8 @@ of text: never a traceback.
 
 Runs go one at a time (the mesher is not thread-safe) into folders the server
 makes under its own temporary folder (in memory where the system has
-``/dev/shm``), deleted once the reply is built. A repeated request with the
+``/dev/shm``), deleted once the reply is built; the files a component's
+scene reads (a mesh given as a net) are written there by the server too. A repeated request with the
 same inputs is answered from a cache of the last replies. A run stops at its
 next progress report once the client has closed the connection (Hops gives
 up after its HTTP timeout) or after ``timeout`` seconds.
