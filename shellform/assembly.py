@@ -207,22 +207,28 @@ class System:
                 count += size
         return [(kind, tuple(ks), sl) for kind, ks, sl in groups], np.zeros(count)
 
-    def _upper_scatter(self, index: np.ndarray, pattern: _Pattern, slot: np.ndarray) -> sp.csr_matrix:
-        """The constant 0/1 matrix that sums the buffer of :meth:`_upper_groups` into the CSR data of ``pattern``.
+    def _upper_scatter(self, index: np.ndarray, pattern: _Pattern, slot: np.ndarray):
+        """How the values of :meth:`_upper_groups` are summed into the CSR data of ``pattern``.
 
-        One row per entry of the pattern, one column per value: a full
-        Hessian value sits in the row of its entry (``slot``, by triplet of
-        the full patterns), a mirrored upper value in the rows of its entry
-        and of the transposed entry; values in a row or column of a DOF that
-        ``index`` maps to -1 (a constrained DOF, for the free pattern) in
-        none.
+        Returns ``(S, direct)``. ``S`` is a constant 0/1 matrix with one row
+        per entry of the pattern (and an empty last row), one column per value
+        of the buffer: a full Hessian value sits in the row of its entry
+        (``slot``, by triplet of the full patterns), a mirrored upper value in
+        the rows of its entry and of the transposed entry; values in a row or
+        column of a DOF that ``index`` maps to -1 (a constrained DOF, for the
+        free pattern) in none. ``direct`` maps a group whose effects add
+        their values to the data themselves (``upper_scatter`` of their class,
+        given the slots of every value and of its mirror, the last slot for
+        none) to that function; its values are not in ``S``.
         """
         groups, buffer = self._upper
         n = pattern.shape[0]
+        dropped = pattern.nnz  # the last row of S, the last slot of the data: cut off
         keys = pattern.indices.astype(np.int64)
         keys += np.repeat(np.arange(n, dtype=np.int64) * n, np.diff(pattern.indptr))  # ascending (canonical CSR)
         rows, cols = [], []
-        for kind, ks, sl in groups:
+        direct = {}
+        for g, (kind, ks, sl) in enumerate(groups):
             e = self.effects[ks[0]]
             if kind == "upper":
                 r, c, mirrored = e.hessian_upper_pattern()
@@ -230,12 +236,24 @@ class System:
                 keep = (fr >= 0) & (fc >= 0)
                 first = np.flatnonzero(keep)
                 twice = np.flatnonzero(keep & np.asarray(mirrored, dtype=bool))
+                slots = []
                 for a, b, sel in ((fr, fc, first), (fc, fr, twice)):
                     key = a[sel] * n + b[sel]
                     pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
                     if np.any(keys[pos] != key):
                         raise ModelError(f"effect {e.name!r}: its upper Hessian pattern has entries outside its "
                                          f"Hessian pattern")
+                    slots.append((pos, sel))
+                own = getattr(type(e), "upper_scatter", None)
+                if own is not None:
+                    at = [np.full(len(r), dropped, dtype=np.int64) for _ in slots]
+                    for a, (pos, sel) in zip(at, slots):
+                        a[sel] = pos
+                    add = own([self.effects[k] for k in ks], *at)
+                    if add is not None:
+                        direct[g] = add
+                        continue
+                for pos, sel in slots:
                     rows.append(pos)
                     cols.append(sl.start + sel)
             else:
@@ -244,15 +262,19 @@ class System:
                 sel = np.flatnonzero(at < pattern.nnz)
                 rows.append(at[sel])
                 cols.append(sl.start + sel)
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
-        S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(pattern.nnz, buffer.size)).tocsr()
+        rows = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+        cols = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+        S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(pattern.nnz + 1, buffer.size)).tocsr()
         S.sum_duplicates()
-        return S
+        return S, direct
 
-    def _upper_data(self, q: np.ndarray, S: sp.csr_matrix) -> np.ndarray:
-        """The effects' values at ``q`` in the buffer of :meth:`_upper_groups`, summed by ``S``."""
+    def _upper_data(self, q: np.ndarray, scatter) -> np.ndarray:
+        """The CSR data at ``q`` from the effects' values, summed as :meth:`_upper_scatter` says."""
+        S, direct = scatter
         groups, buffer = self._upper
-        for kind, ks, sl in groups:
+        for g, (kind, ks, sl) in enumerate(groups):
+            if g in direct:
+                continue
             if kind == "upper":
                 effects = [self.effects[k] for k in ks]
                 type(effects[0]).summed_hessian_upper_values(effects, q, out=buffer[sl])
@@ -260,7 +282,10 @@ class System:
                 buffer[sl] = self.effects[ks[0]].hessian_values(q)
                 for k in ks[1:]:
                     buffer[sl] += self.effects[k].hessian_values(q)
-        return S @ buffer
+        data = S @ buffer
+        for add in direct.values():
+            add(q, data)
+        return data[:-1]
 
     def _group_values(self, values: dict) -> np.ndarray:
         """The values of all triplets from values by effect index (summed over effects sharing a pattern; zero
@@ -360,7 +385,8 @@ class System:
         Effects that give the upper triangles of their element blocks
         (:meth:`Effect.hessian_upper_pattern`) compute and scatter only those;
         the scatter fills the free pattern's data with one product by a
-        constant 0/1 matrix (:meth:`_upper_scatter`); :meth:`tangent` alike.
+        constant 0/1 matrix, or the effects add their values to it themselves
+        (:meth:`_upper_scatter`); :meth:`tangent` alike.
         """
         if self._upper is not None:
             data = self._upper_data(q, self._upper_free)

@@ -141,3 +141,60 @@ def test_shared_patterns_assemble_to_the_sum_of_the_effects():
     parts = system.assemble_free({bend: bend.hessian_values(q), twist: twist.hessian_values(q)}).toarray()
     both = (dense(bend) + dense(twist))[np.ix_(free, free)]
     assert np.allclose(parts, both, rtol=0, atol=1e-13 * np.abs(total).max())
+
+
+@pytest.mark.parametrize("ratio", [None, "random"])
+def test_compiled_upper_values_are_the_collected_ones(ratio):
+    """The compiled hinge kernel against the NumPy collection of the same terms, each effect alone and both."""
+    pytest.importorskip("numba")
+    from shellform.effects import rod_hinge_compiled
+
+    rng = np.random.default_rng(11)
+    s, net = network_from(random_lines(rng, (4, 7, 9)), closed=(2,), natural=["rest", "straight", "rest"],
+                          twist=[0.3, 0.0, -0.2], seed=3, ratio=ratio)
+    q1 = s.reference_state() + 0.2 * rng.normal(size=s.n_dof)
+    net.frames.update(q1)
+    q = q1 + 0.3 * rng.normal(size=s.n_dof)
+    bend, twist = hinge_effects(net)
+    assert rod_hinge_compiled.available
+    for effects in ([bend], [twist], [bend, twist]):
+        expected = HingeEffect._hessian(effects, q).upper()
+        got = HingeEffect.summed_hessian_upper_values(effects, q).reshape(66, -1)
+        scale = np.abs(expected).max(axis=0) + 1e-300
+        assert np.all(np.abs(got - expected) <= 1e-12 * scale), [e.name for e in effects]
+
+
+@pytest.mark.parametrize("ratio", [None, "random"])
+def test_tangents_with_and_without_the_compiled_hinges(monkeypatch, ratio):
+    """The System's tangents with the hinge values added straight into the data equal those summed by the 0/1
+    product from the NumPy values (numba absent), and the dense sum of the effects' full Hessians."""
+    import scipy.sparse as sp
+
+    from shellform.effects import rod_hinge_compiled
+    from shellform.rods import build_rod_system
+
+    def tangents(available):
+        monkeypatch.setattr(rod_hinge_compiled, "available", available)
+        rng = np.random.default_rng(8)
+        s, net = network_from(random_lines(rng, (5, 8)), natural=["rest", "straight"], twist=[0.2, 0.0], seed=2,
+                              ratio=ratio)
+        net.clamp(0, "start")
+        net.pin(1, "end")
+        system = build_rod_system(net)
+        q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
+        net.frames.update(q)
+        q = q + 0.05 * rng.normal(size=s.n_dof)
+        direct = any(system._upper_free[1])
+        return system, q, direct, system.tangent_free(q).toarray(), system.tangent(q).toarray()
+
+    system, q, direct, K_free, K = tangents(rod_hinge_compiled.njit is not None)
+    assert direct == (rod_hinge_compiled.njit is not None)
+    _, _, direct, K_free0, K0 = tangents(False)
+    assert not direct
+    total = sum(sp.coo_matrix((e.hessian_values(q), e.hessian_pattern()), shape=(q.size, q.size)).toarray()
+                for e in system.effects)
+    tol = 1e-13 * np.abs(total).max()
+    assert np.allclose(K, total, rtol=0, atol=tol)
+    assert np.allclose(K_free, total[np.ix_(system.free, system.free)], rtol=0, atol=tol)
+    assert np.allclose(K0, K, rtol=0, atol=tol)
+    assert np.allclose(K_free0, K_free, rtol=0, atol=tol)

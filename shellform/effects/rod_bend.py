@@ -115,6 +115,13 @@ class RodBending(HingeEffect):
 
     hessian_slots = 2
 
+    def compiled_terms(self, q):
+        if not (self.curved.size or self.aniso.size):
+            return {"bending": self.k}
+        t0, t1, l0, l1, theta = self._geometry(q)
+        whole = [(sub, self.k[sub] * Hz) for sub, _, _, Hz in self._frame_terms(t0, t1, l0, l1, theta, hessian=True)]
+        return {"bending": self.k, "whole": whole}
+
     def _frame_terms(self, t0, t1, l0, l1, theta, hessian):
         """The material-frame terms of the curved and of the anisotropic hinges: for each set, the hinges, their
         energies, gradients (8, n) over ``z`` and (if ``hessian``) Hessians (8, 8, n), before the factor ``k``."""

@@ -237,7 +237,13 @@ UPPER_PAIRS = _upper_pairs()
 # flat indices into a Hessian over z (8, 8) and into a 3 x 3 block
 _Z_TT = np.array([54, 55, 63])  # H_{theta theta}, upper
 _BLOCK_UPPER = np.array([0, 1, 2, 4, 5, 8])
+_STENCIL_UPPER = UPPER_PAIRS[:, 0] * 11 + UPPER_PAIRS[:, 1]  # UPPER_PAIRS as flat indices into (11, 11)
 _BLOCK_UPPER_T = np.array([0, 3, 6, 4, 7, 8])
+
+
+def _stencil_upper(Hz: np.ndarray) -> np.ndarray:
+    """The entries :data:`UPPER_PAIRS` (66, n) of the stencil Hessians from symmetric ones over ``z`` (8, 8, n)."""
+    return view(stencil_hessian(Hz), (121, -1))[_STENCIL_UPPER]
 
 
 def stencil_pattern(stencil: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -469,17 +475,90 @@ class HingeEffect(Effect):
         return self._upper_pattern
 
     def hessian_upper_values(self, q, out=None):
-        return HingeEffect._hessian([self], q).upper(out).ravel()
+        return HingeEffect._upper_values([self], q, out)
 
     @classmethod
     def summed_hessian_upper_values(cls, effects, q, out=None):
-        """Bending and twisting of the same hinges: their terms collected in one :class:`HingeHessian`,
-        carried to the stencil once."""
+        """Bending and twisting of the same hinges: their terms evaluated together and carried to the stencil
+        once (:meth:`_upper_values`)."""
         first = effects[0]
         if not all(isinstance(e, HingeEffect) and e.frames is first.frames
                    and (e.stencil is first.stencil or np.array_equal(e.stencil, first.stencil)) for e in effects):
             return super().summed_hessian_upper_values(effects, q, out)
-        return HingeEffect._hessian(effects, q).upper(out).ravel()
+        return HingeEffect._upper_values(effects, q, out)
+
+    @staticmethod
+    def _upper_values(effects, q, out=None) -> np.ndarray:
+        """The summed upper stencil Hessians of effects on the same hinges, flat ``(66 h,)``.
+
+        Compiled per hinge (:mod:`.rod_hinge_compiled`) when every effect
+        gives its :meth:`compiled_terms` and numba is installed, collected in
+        a :class:`HingeHessian` otherwise.
+        """
+        # imported here: numba's import alone takes 0.1-0.3 s, which models without rods never need
+        from . import rod_hinge_compiled as compiled
+
+        terms = HingeEffect._compiled_terms(effects, q) if compiled.available else None
+        if terms is None:
+            return HingeEffect._hessian(effects, q).upper(out).ravel()
+        h = effects[0].stencil.shape[0]
+        values = np.empty((66, h)) if out is None else view(out, (66, h))
+        compiled.upper_values(*effects[0].frames.hinge_tangents(q), terms.get("bending"), terms.get("twisting"),
+                              values)
+        for sub, H in terms["whole"]:
+            values[:, sub] += _stencil_upper(H)
+        return values.ravel()
+
+    @classmethod
+    def upper_scatter(cls, effects, first: np.ndarray, second: np.ndarray):
+        """A function ``add(q, data)`` that adds the summed upper stencil Hessians of ``effects`` (on the same
+        hinges) to the data of a sparse matrix, or None where it cannot (numba not installed, an effect without
+        :meth:`compiled_terms`).
+
+        ``first`` and ``second`` give, for every value of
+        :meth:`hessian_upper_pattern`, the slots in ``data`` of its entry and
+        of its mirror (a slot that is dropped where there is none).
+        """
+        from . import rod_hinge_compiled as compiled
+
+        first_effect = effects[0]
+        if not compiled.available or any(type(e).compiled_terms is HingeEffect.compiled_terms
+                                         or e.frames is not first_effect.frames for e in effects):
+            return None
+        h = first_effect.stencil.shape[0]
+        # hinge-major: the kernel adds the values of one hinge after the other
+        first, second = (np.ascontiguousarray(view(a, (66, h)).T, dtype=np.int32) for a in (first, second))
+
+        def add(q: np.ndarray, data: np.ndarray) -> None:
+            terms = HingeEffect._compiled_terms(effects, q)
+            compiled.add_upper_values(*first_effect.frames.hinge_tangents(q), terms.get("bending"),
+                                      terms.get("twisting"), data, first, second)
+            for sub, H in terms["whole"]:
+                compiled.scatter(data, first, second, sub, _stencil_upper(H))
+
+        return add
+
+    @staticmethod
+    def _compiled_terms(effects, q) -> dict | None:
+        """The :meth:`compiled_terms` of ``effects`` merged, or None if one has none or two give the same term."""
+        terms = {"whole": []}
+        for e in effects:
+            own = e.compiled_terms(q)
+            if own is None or set(own) & set(terms) - {"whole"}:
+                return None
+            terms.update(own, whole=terms["whole"] + own.get("whole", []))
+        return terms
+
+    def compiled_terms(self, q: np.ndarray) -> dict | None:
+        """What the compiled hinge kernel takes from this effect at ``q``, or None (the default): the NumPy form.
+
+        Keys: ``"bending"``, the stiffness ``k`` (h,) of an isotropic
+        ``k |kb|^2``; ``"twisting"``, a
+        :class:`~shellform.effects.rod_reference_twist.TwistInputs`;
+        ``"whole"``, a list of pairs of hinge indices and Hessians over ``z``
+        (8, 8, n) added as they are.
+        """
+        return None
 
     #: slots of a :class:`HingeHessian` of the effect's own
     hessian_slots = 0

@@ -27,6 +27,21 @@ class TwistTerms(NamedTuple):
     parts: tuple | None
 
 
+class TwistInputs(NamedTuple):
+    """What the twisting Hessian of every hinge takes besides its tangents and lengths, for the compiled kernel
+    (:mod:`.rod_hinge_compiled`)."""
+
+    k: np.ndarray  # (h,) GJ / (2 dl)
+    s0: np.ndarray  # (3, h) stored tangents of the two edges
+    s1: np.ndarray
+    n2: np.ndarray  # (3, h) s1 x s0
+    d2: np.ndarray  # (3, h) s0 + s1
+    s1s0: np.ndarray  # (h,) s1 . s0
+    theta: np.ndarray  # (2, h) twist angles of the two edges
+    twist: np.ndarray  # (h,) stored reference twist
+    tau_bar: np.ndarray  # (h,) natural twist
+
+
 def stored_twist_terms(s0, s1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What the second triangle of the reference twist takes from the stored tangents alone:
     ``s1 x s0``, ``s0 + s1`` (3, h) and ``s1 . s0`` (h,)."""

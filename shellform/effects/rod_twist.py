@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from .rod_hinge import HingeEffect
-from .rod_reference_twist import reference_twist_derivatives, reference_twist_hessian, stored_twist_terms
+from .rod_reference_twist import (TwistInputs, reference_twist_derivatives, reference_twist_hessian,
+                                  stored_twist_terms)
 from .base import LineResults
 from .rod_output import edge_means
 
@@ -86,6 +87,10 @@ class RodTwisting(HingeEffect):
     def add_hessian(self, q, acc):
         s0, terms, dtau = self._twist_terms(q, 2, acc)
         reference_twist_hessian(acc, s0, terms, 2.0 * self.k * dtau, self.k)
+
+    def compiled_terms(self, q):
+        s0, s1, stored = self._stored()
+        return {"twisting": TwistInputs(self.k, s0, s1, *stored, q[self._dofs_t[9:]], self.frames.twist, self.tau_bar)}
 
     def member_results(self, q):
         tau = self.twist(q)

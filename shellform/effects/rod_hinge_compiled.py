@@ -1,0 +1,285 @@
+"""The upper stencil Hessians of the isotropic bending and the twisting of rod hinges, compiled per hinge.
+
+The same closed-form terms as :class:`~shellform.effects.rod_hinge.HingeHessian`
+(:func:`~shellform.effects.rod_hinge.binormal_energy_hessian` and
+:func:`~shellform.effects.rod_reference_twist.reference_twist_hessian`), each
+written out for one hinge at a time: the blocks of ``U`` over the edge vectors
+(the Hessian being ``U + U^T``), each a sum of outer products
+``t0 P^T + t1 Q^T + ...`` of which bending and twisting add up the right
+vectors first, then the 66 entries
+:data:`~shellform.effects.rod_hinge.UPPER_PAIRS` of the stencil Hessian.
+Over 10^3 - 10^4 hinges the NumPy form spends its time in some 150 array
+operations and their temporaries (1.5 - 2.5 us each whatever the size); one
+pass over the hinges takes about 0.2 us per hinge
+(``benchmarks/bench_rods.py --part tangent``).
+
+The values are written to the ``(66, h)`` array of
+:meth:`~shellform.effects.rod_hinge.HingeEffect.hessian_upper_values`, or
+added straight into the data of the System's sparse tangent
+(:meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`), which saves
+the buffer of values and the product that sums them into the data.
+
+Vectors are tuples of three floats, which the compiler keeps in registers.
+Without numba (:data:`available` False) the hinge effects take the NumPy form.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .rod_reference_twist import TwistInputs
+
+try:
+    from numba import njit
+except ImportError:  # the NumPy form of the same terms is used
+    njit = None
+
+#: whether the kernel can be compiled (numba installed)
+available = njit is not None
+# compiled on first call and cached on disk; without numba the functions stay plain Python and are not called
+_jit = (lambda f: f) if njit is None else njit(cache=True, nogil=True)
+
+
+@_jit
+def dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@_jit
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@_jit
+def add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@_jit
+def sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@_jit
+def mul(s, a):
+    return (s * a[0], s * a[1], s * a[2])
+
+
+ZERO = (0.0, 0.0, 0.0)
+
+
+@_jit
+def block(W, l0, r0, l1, r1, l2, r2, l3, r3, d):
+    """``W = l0 r0^T + l1 r1^T + l2 r2^T + l3 r3^T + d I`` (3 x 3)."""
+    for a in range(3):
+        for b in range(3):
+            W[a, b] = l0[a] * r0[b] + l1[a] * r1[b] + l2[a] * r2[b] + l3[a] * r3[b]
+        W[a, a] += d
+
+
+@_jit
+def bending(t0, t1, i0, i1, c, k):
+    """``U`` of ``k |kb|^2`` (:func:`~shellform.effects.rod_hinge.binormal_energy_hessian`): its blocks
+    ``00, 01, 10, 11`` as ``t0 P^T + t1 Q^T + d I``; returns the vectors ``P`` and ``Q`` and the ``d`` of the
+    blocks ``00, 01, 11``."""
+    s2 = 2.0 * k
+    ichi = 1.0 / (1.0 + c)
+    u = 1.0 - c
+    kk = 4.0 * u * ichi
+    p = 4.0 * ichi - kk
+    r = 4.0 * c * ichi + kk
+    # (m / l_a) (p t_a - r t_b) times y_b = ((1 - c) t_b + 2 t_b') / l_b, b' the other edge
+    m0, m1 = -s2 * ichi * ichi * i0, -s2 * ichi * ichi * i1
+    y0, y1 = add(mul(u * i0, t0), mul(2.0 * i0, t1)), add(mul(u * i1, t1), mul(2.0 * i1, t0))
+    # -(k |kb|^2 / chi^2) v v^T, v = (w / l0, w / l1), w = t0 + t1 (so its left vectors are t0 and t1 alike)
+    w = add(t0, t1)
+    f = -0.5 * s2 * kk * ichi * ichi
+    v0, v1 = mul(f * i0 * i0, w), mul(f * i1 * i1, w)
+    v01 = mul(f * i0 * i1, w)  # = v10
+    ca0, ca1 = s2 * ichi * i0 * i0, s2 * ichi * i1 * i1
+    alpha = s2 * ichi * i0 * i1
+    pk = p - 0.5 * kk
+    ar, a4 = alpha * r, 4.0 * alpha * ichi
+    P00 = add(add(mul(m0 * p, y0), v0), sub(mul(ca0 * r, t1), mul(ca0 * pk, t0)))
+    Q00 = add(add(mul(-m0 * r, y0), v0), mul(-2.0 * ichi * ca0, t1))
+    P01 = add(add(mul(m0 * p, y1), v01), add(mul(ar, t0), mul(alpha * kk + a4, t1)))
+    Q01 = add(add(mul(-m0 * r, y1), v01), mul(-a4, t0))
+    P10 = add(mul(-m1 * r, y0), v01)
+    Q10 = add(add(mul(m1 * p, y0), v01), sub(mul(ar, t1), mul(a4, t0)))
+    P11 = add(add(mul(-m1 * r, y1), v1), mul(-2.0 * ichi * ca1, t0))
+    Q11 = add(add(mul(m1 * p, y1), v1), sub(mul(ca1 * r, t0), mul(ca1 * pk, t1)))
+    d = 2.0 * ichi - 0.5 * kk
+    return P00, Q00, P01, Q01, P10, Q10, P11, Q11, d * ca0, -ar, d * ca1
+
+
+@_jit
+def twisting(t0, t1, i0, i1, c, k, s0, s1, n2, d2, s1s0, dtheta, tau_bar):
+    """``U`` of ``k (tau - tau_bar)^2``
+    (:func:`~shellform.effects.rod_reference_twist.reference_twist_hessian`): the gradient ``g0, g1`` of
+    ``beta`` over the edge vectors, the right vectors of ``g`` (``y``) and of ``(0, x)`` (``z``), the terms
+    ``t0 P^T`` of the block ``00`` and ``01`` and ``t1 Q^T`` of ``10`` and ``11``, the ``d`` of the
+    blocks ``00, 01, 11``, the skew part of ``01`` (``[a]_x``) and ``2 k``."""
+    gn0, gn1 = cross(t1, s0), cross(s0, t0)
+    N1, N2 = dot(t0, gn0), dot(t1, n2)
+    s0t1 = dot(s0, t1)
+    D1 = 1.0 + c + dot(s0, t0) + s0t1
+    gd0, gd1 = add(s0, t1), add(s0, t0)
+    R1 = N1 * N1 + D1 * D1
+    D2 = 1.0 + s0t1 + dot(s1, t1) + s1s0
+    R2 = N2 * N2 + D2 * D2
+    G2 = sub(mul(D2, n2), mul(N2, d2))
+    beta = -2.0 * (np.arctan2(N1, D1) + np.arctan2(N2, D2))
+    # the gradient of beta over the tangents and over the edge vectors
+    e1, e2 = -2.0 / R1, 2.0 / R2
+    gt0 = mul(e1, sub(mul(D1, gn0), mul(N1, gd0)))
+    gt1 = sub(mul(e1, sub(mul(D1, gn1), mul(N1, gd1))), mul(e2, G2))
+    gtt0, gtt1 = dot(gt0, t0), dot(gt1, t1)
+    g0, g1 = mul(i0, sub(gt0, mul(gtt0, t0))), mul(i1, sub(gt1, mul(gtt1, t1)))
+    cc = 2.0 * k * (dtheta + beta - tau_bar)
+    # b: the gradient of R1 over the edge vectors
+    r0, r1 = add(mul(N1, gn0), mul(D1, gd0)), add(mul(N1, gn1), mul(D1, gd1))
+    b0, b1 = mul(2.0 * i0, sub(r0, mul(dot(r0, t0), t0))), mul(2.0 * i1, sub(r1, mul(dot(r1, t1), t1)))
+    f = 0.5 * cc / R1
+    y0, y1 = sub(mul(k, g0), mul(f, b0)), sub(mul(k, g1), mul(f, b1))
+    x = mul(i1, sub(G2, mul(dot(G2, t1), t1)))
+    e = -cc / (R1 * R2)
+    r2 = add(mul(N2, n2), mul(D2, d2))
+    r2 = mul(2.0 * cc / (R2 * R2) * i1, sub(r2, mul(dot(r2, t1), t1)))
+    z0, z1 = mul(e, b0), add(mul(e, b1), r2)
+    # the off-diagonal block of the first triangle, 2 c P0 (D1 [s0]_x + N1 I) P1 / (R1 l0 l1)
+    alpha = 2.0 * i0 * i1 / R1 * cc
+    aN, aD = alpha * N1, alpha * D1
+    P01 = add(sub(mul(aD, gn1), mul(aN, t0)), mul(aN * (c - D1), t1))
+    Q10 = sub(mul(aD, gn0), mul(aN, t1))
+    # the normalisation
+    sc0, sc1 = cc * i0 * i0, cc * i1 * i1
+    P00 = mul(-sc0, sub(gt0, mul(1.5 * gtt0, t0)))
+    Q11 = mul(-sc1, sub(gt1, mul(1.5 * gtt1, t1)))
+    return (g0, g1, y0, y1, x, z0, z1, P00, P01, Q10, Q11, -0.5 * sc0 * gtt0, aN, -0.5 * sc1 * gtt1,
+            mul(aD, s0), 2.0 * k)
+
+
+@_jit
+def kernel(T0, T1, L0, L1, kb, kt, S0, S1, N2, D2, S1S0, theta, twist, tau_bar, out, first, second):
+    """The upper stencil Hessians: ``out[n h + i]`` the value ``n`` of hinge ``i``, or, when ``first`` is not
+    empty, added to ``out[first[i, n]]`` and ``out[second[i, n]]``."""
+    h = L0.shape[0]
+    scatter = first.shape[0] > 0
+    v = np.empty(66)
+    bend, tw = kb.shape[0] > 0, kt.shape[0] > 0
+    W00 = np.empty((3, 3))
+    W01 = np.empty((3, 3))
+    W10 = np.empty((3, 3))
+    W11 = np.empty((3, 3))
+    x01 = np.empty((3, 3))
+    x12 = np.empty((3, 3))
+    for i in range(h):
+        t0 = (T0[0, i], T0[1, i], T0[2, i])
+        t1 = (T1[0, i], T1[1, i], T1[2, i])
+        i0, i1 = 1.0 / L0[i], 1.0 / L1[i]
+        c = dot(t0, t1)
+        P00 = Q00 = P01 = Q01 = P10 = Q10 = P11 = Q11 = ZERO
+        d00 = d01 = d11 = 0.0
+        g0 = g1 = y0 = y1 = x = z0 = z1 = sk = ZERO
+        k2 = 0.0
+        if bend:
+            P00, Q00, P01, Q01, P10, Q10, P11, Q11, d00, d01, d11 = bending(t0, t1, i0, i1, c, kb[i])
+        if tw:
+            g0, g1, y0, y1, x, z0, z1, p00, p01, q10, q11, e00, e01, e11, sk, k2 = twisting(
+                t0, t1, i0, i1, c, kt[i], (S0[0, i], S0[1, i], S0[2, i]), (S1[0, i], S1[1, i], S1[2, i]),
+                (N2[0, i], N2[1, i], N2[2, i]), (D2[0, i], D2[1, i], D2[2, i]), S1S0[i],
+                theta[1, i] - theta[0, i] + twist[i], tau_bar[i])
+            P00, P01, Q10, Q11 = add(P00, p00), add(P01, p01), add(Q10, q10), add(Q11, q11)
+            d00, d01, d11 = d00 + e00, d01 + e01, d11 + e11
+        block(W00, t0, P00, t1, Q00, g0, y0, ZERO, ZERO, d00)
+        block(W01, t0, P01, t1, Q01, g0, y1, ZERO, ZERO, d01)
+        block(W10, t0, P10, t1, Q10, g1, y0, x, z0, 0.0)
+        block(W11, t0, P11, t1, Q11, g1, y1, x, z1, d11)
+        W01[0, 1] -= sk[2]
+        W01[0, 2] += sk[1]
+        W01[1, 0] += sk[2]
+        W01[1, 2] -= sk[0]
+        W01[2, 0] -= sk[1]
+        W01[2, 1] += sk[0]
+        # the stencil: x0 x0: A, x0 x1: B - A, x0 x2: -B, x1 x1: -(x0 x1) - (x1 x2)^T, x1 x2: B - C, x2 x2: C
+        # with A, B, C the blocks 00, 01, 11 of U + U^T
+        n = 0
+        for a in range(3):
+            for b in range(a, 3):
+                v[n] = W00[a, b] + W00[b, a]
+                v[39 + n] = W11[a, b] + W11[b, a]
+                n += 1
+        for a in range(3):
+            for b in range(3):
+                B = W01[a, b] + W10[b, a]
+                x01[a, b] = B - (W00[a, b] + W00[b, a])
+                x12[a, b] = B - (W11[a, b] + W11[b, a])
+                v[6 + 3 * a + b] = x01[a, b]
+                v[15 + 3 * a + b] = -B
+                v[30 + 3 * a + b] = x12[a, b]
+        n = 24
+        for a in range(3):
+            for b in range(a, 3):
+                v[n] = -(x01[a, b] + x12[b, a])
+                n += 1
+        # the twist angles: tau's gradient over z is (grad beta, -1, 1)
+        for a in range(3):
+            h0, h1 = k2 * g0[a], k2 * g1[a]
+            v[45 + 2 * a] = h0
+            v[46 + 2 * a] = -h0
+            v[51 + 2 * a] = h1 - h0
+            v[52 + 2 * a] = h0 - h1
+            v[57 + 2 * a] = -h1
+            v[58 + 2 * a] = h1
+        v[63] = k2
+        v[64] = -k2
+        v[65] = k2
+        if scatter:
+            for n in range(66):
+                out[first[i, n]] += v[n]
+                out[second[i, n]] += v[n]
+        else:
+            for n in range(66):
+                out[n * h + i] = v[n]
+
+
+@_jit
+def scatter(data, first, second, hinges, values):
+    """Add the upper stencil Hessians ``values`` (66, n) of the hinges ``hinges`` to ``data`` at their slots."""
+    for j in range(hinges.shape[0]):
+        i = hinges[j]
+        for n in range(66):
+            data[first[i, n]] += values[n, j]
+            data[second[i, n]] += values[n, j]
+
+
+_NO_SLOTS = np.zeros((0, 66), dtype=np.int32)
+
+
+def _inputs(t0, t1, l0, l1, bending, twisting) -> tuple:
+    """The kernel's arrays: empty ones for an effect that is not there."""
+    none, none3 = np.zeros(0), np.zeros((3, 0))
+    kb = none if bending is None else np.ascontiguousarray(bending, dtype=float)
+    if twisting is None:
+        tw = (none, none3, none3, none3, none3, none, np.zeros((2, 0)), none, none)
+    else:
+        tw = tuple(np.ascontiguousarray(a, dtype=float) for a in twisting)
+    return (*(np.ascontiguousarray(a, dtype=float) for a in (t0, t1, l0, l1)), kb, *tw)
+
+
+def upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: TwistInputs | None, out: np.ndarray) -> None:
+    """Write the upper stencil Hessians (66, h) of the isotropic bending (stiffness ``k``, (h,) or None) and the
+    twisting (or None) of the hinges with tangents ``t0, t1`` (3, h) and lengths ``l0, l1`` (h,) to ``out``,
+    C-contiguous.
+
+    Needs numba (:data:`available`). The kernel is compiled on its first call (about 3 s, once: numba
+    caches it on disk; 0.2 s to load it in a new process).
+    """
+    kernel(*_inputs(t0, t1, l0, l1, bending, twisting), np.reshape(out, -1, copy=False), _NO_SLOTS, _NO_SLOTS)
+
+
+def add_upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: TwistInputs | None, data: np.ndarray,
+                     first: np.ndarray, second: np.ndarray) -> None:
+    """Add the values of :func:`upper_values` to ``data`` at ``first`` and ``second`` (int32 (h, 66): the slots
+    of each hinge's values and of their mirrors, or a slot that is dropped)."""
+    kernel(*_inputs(t0, t1, l0, l1, bending, twisting), data, first, second)
