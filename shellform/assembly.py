@@ -16,6 +16,7 @@ structure) are ``r[constrained]``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -74,6 +75,16 @@ class _Pattern:
     def matrix(self, vals: np.ndarray) -> sp.csr_matrix:
         data = np.bincount(self.slot, weights=vals, minlength=self.nnz)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+
+
+class _UpperSum(NamedTuple):
+    """How :class:`System` sums the values of effects that give upper triangles into CSR data
+    (:meth:`System._upper_scatter`)."""
+
+    product: sp.csr_matrix  # the 0/1 matrix, by the rows of the data it fills
+    rows: np.ndarray | None  # those rows, None for all
+    size: int  # the length of the data with its last, dropped slot
+    direct: dict  # group index -> function (q, data) that adds the group's values itself
 
 
 class System:
@@ -207,19 +218,18 @@ class System:
                 count += size
         return [(kind, tuple(ks), sl) for kind, ks, sl in groups], np.zeros(count)
 
-    def _upper_scatter(self, index: np.ndarray, pattern: _Pattern, slot: np.ndarray):
+    def _upper_scatter(self, index: np.ndarray, pattern: _Pattern, slot: np.ndarray) -> _UpperSum:
         """How the values of :meth:`_upper_groups` are summed into the CSR data of ``pattern``.
 
-        Returns ``(S, direct)``. ``S`` is a constant 0/1 matrix with one row
-        per entry of the pattern (and an empty last row), one column per value
-        of the buffer: a full Hessian value sits in the row of its entry
-        (``slot``, by triplet of the full patterns), a mirrored upper value in
-        the rows of its entry and of the transposed entry; values in a row or
-        column of a DOF that ``index`` maps to -1 (a constrained DOF, for the
-        free pattern) in none. ``direct`` maps a group whose effects add
-        their values to the data themselves (``upper_scatter`` of their class,
-        given the slots of every value and of its mirror, the last slot for
-        none) to that function; its values are not in ``S``.
+        A constant 0/1 matrix with one row per entry of the pattern (and an
+        empty last row), one column per value of the buffer: a full Hessian
+        value sits in the row of its entry (``slot``, by triplet of the full
+        patterns), a mirrored upper value in the rows of its entry and of the
+        transposed entry; values in a row or column of a DOF that ``index``
+        maps to -1 (a constrained DOF, for the free pattern) in none. A group
+        whose effects add their values to the data themselves
+        (``upper_scatter`` of their class, given the slots of every value and
+        of its mirror, the last slot for none) is left out of the matrix.
         """
         groups, buffer = self._upper
         n = pattern.shape[0]
@@ -266,14 +276,17 @@ class System:
         cols = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
         S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(pattern.nnz + 1, buffer.size)).tocsr()
         S.sum_duplicates()
-        return S, direct
+        if not direct:
+            return _UpperSum(S, None, S.shape[0], direct)
+        # the product then fills only the rows it has: over all rows it took as long as the stretching values
+        filled = np.flatnonzero(np.diff(S.indptr))
+        return _UpperSum(S[filled], filled, S.shape[0], direct)
 
-    def _upper_data(self, q: np.ndarray, scatter) -> np.ndarray:
+    def _upper_data(self, q: np.ndarray, scatter: _UpperSum) -> np.ndarray:
         """The CSR data at ``q`` from the effects' values, summed as :meth:`_upper_scatter` says."""
-        S, direct = scatter
         groups, buffer = self._upper
         for g, (kind, ks, sl) in enumerate(groups):
-            if g in direct:
+            if g in scatter.direct:
                 continue
             if kind == "upper":
                 effects = [self.effects[k] for k in ks]
@@ -282,8 +295,12 @@ class System:
                 buffer[sl] = self.effects[ks[0]].hessian_values(q)
                 for k in ks[1:]:
                     buffer[sl] += self.effects[k].hessian_values(q)
-        data = S @ buffer
-        for add in direct.values():
+        if scatter.rows is None:
+            data = scatter.product @ buffer
+        else:
+            data = np.zeros(scatter.size)
+            data[scatter.rows] = scatter.product @ buffer
+        for add in scatter.direct.values():
             add(q, data)
         return data[:-1]
 

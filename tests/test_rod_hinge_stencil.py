@@ -147,7 +147,7 @@ def test_shared_patterns_assemble_to_the_sum_of_the_effects():
 def test_compiled_upper_values_are_the_collected_ones(ratio):
     """The compiled hinge kernel against the NumPy collection of the same terms, each effect alone and both."""
     pytest.importorskip("numba")
-    from shellform.effects import rod_hinge_compiled
+    from shellform.effects import rod_compiled
 
     rng = np.random.default_rng(11)
     s, net = network_from(random_lines(rng, (4, 7, 9)), closed=(2,), natural=["rest", "straight", "rest"],
@@ -156,7 +156,7 @@ def test_compiled_upper_values_are_the_collected_ones(ratio):
     net.frames.update(q1)
     q = q1 + 0.3 * rng.normal(size=s.n_dof)
     bend, twist = hinge_effects(net)
-    assert rod_hinge_compiled.available
+    assert rod_compiled.available
     for effects in ([bend], [twist], [bend, twist]):
         expected = HingeEffect._hessian(effects, q).upper()
         got = HingeEffect.summed_hessian_upper_values(effects, q).reshape(66, -1)
@@ -170,11 +170,11 @@ def test_tangents_with_and_without_the_compiled_hinges(monkeypatch, ratio):
     product from the NumPy values (numba absent), and the dense sum of the effects' full Hessians."""
     import scipy.sparse as sp
 
-    from shellform.effects import rod_hinge_compiled
+    from shellform.effects import rod_compiled
     from shellform.rods import build_rod_system
 
     def tangents(available):
-        monkeypatch.setattr(rod_hinge_compiled, "available", available)
+        monkeypatch.setattr(rod_compiled, "available", available)
         rng = np.random.default_rng(8)
         s, net = network_from(random_lines(rng, (5, 8)), natural=["rest", "straight"], twist=[0.2, 0.0], seed=2,
                               ratio=ratio)
@@ -184,11 +184,11 @@ def test_tangents_with_and_without_the_compiled_hinges(monkeypatch, ratio):
         q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
         net.frames.update(q)
         q = q + 0.05 * rng.normal(size=s.n_dof)
-        direct = any(system._upper_free[1])
+        direct = bool(system._upper_free.direct)
         return system, q, direct, system.tangent_free(q).toarray(), system.tangent(q).toarray()
 
-    system, q, direct, K_free, K = tangents(rod_hinge_compiled.njit is not None)
-    assert direct == (rod_hinge_compiled.njit is not None)
+    system, q, direct, K_free, K = tangents(rod_compiled.njit is not None)
+    assert direct == (rod_compiled.njit is not None)
     _, _, direct, K_free0, K0 = tangents(False)
     assert not direct
     total = sum(sp.coo_matrix((e.hessian_values(q), e.hessian_pattern()), shape=(q.size, q.size)).toarray()

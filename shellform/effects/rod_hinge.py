@@ -491,12 +491,12 @@ class HingeEffect(Effect):
     def _upper_values(effects, q, out=None) -> np.ndarray:
         """The summed upper stencil Hessians of effects on the same hinges, flat ``(66 h,)``.
 
-        Compiled per hinge (:mod:`.rod_hinge_compiled`) when every effect
+        Compiled per hinge (:mod:`.rod_compiled`) when every effect
         gives its :meth:`compiled_terms` and numba is installed, collected in
         a :class:`HingeHessian` otherwise.
         """
         # imported here: numba's import alone takes 0.1-0.3 s, which models without rods never need
-        from . import rod_hinge_compiled as compiled
+        from . import rod_compiled as compiled
 
         terms = HingeEffect._compiled_terms(effects, q) if compiled.available else None
         if terms is None:
@@ -519,7 +519,7 @@ class HingeEffect(Effect):
         :meth:`hessian_upper_pattern`, the slots in ``data`` of its entry and
         of its mirror (a slot that is dropped where there is none).
         """
-        from . import rod_hinge_compiled as compiled
+        from . import rod_compiled as compiled
 
         first_effect = effects[0]
         if not compiled.available or any(type(e).compiled_terms is HingeEffect.compiled_terms

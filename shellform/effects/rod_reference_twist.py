@@ -29,7 +29,7 @@ class TwistTerms(NamedTuple):
 
 class TwistInputs(NamedTuple):
     """What the twisting Hessian of every hinge takes besides its tangents and lengths, for the compiled kernel
-    (:mod:`.rod_hinge_compiled`)."""
+    (:mod:`.rod_compiled`)."""
 
     k: np.ndarray  # (h,) GJ / (2 dl)
     s0: np.ndarray  # (3, h) stored tangents of the two edges

@@ -83,6 +83,25 @@ class RodStretching(AxialBar):
         out[15:21] = out[0:6]
         return out.ravel()
 
+    @classmethod
+    def upper_scatter(cls, effects, first, second):
+        """A function ``add(q, data)`` that adds the upper Hessian values to the data of a sparse matrix at the
+        slots ``first`` (of every value) and ``second`` (of its mirror), compiled; None without numba or for
+        another force law (see :meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`)."""
+        from . import rod_compiled as compiled
+
+        e = effects[0]
+        if not compiled.available or len(effects) > 1 or type(e)._force is not AxialBar._force \
+                or type(e)._active is not AxialBar._active:
+            return None
+        m = len(e.conn)
+        first, second = (np.ascontiguousarray(a.reshape(21, m).T, dtype=np.int32) for a in (first, second))
+
+        def add(q: np.ndarray, data: np.ndarray) -> None:
+            compiled.add_stretch_values(q, e.dofs, e.EA, e.L, data, first, second)
+
+        return add
+
     def hessian_values(self, q):
         """``[[K, -K], [-K, K]]`` with ``K = (EA / L - N / l) n n^T + (N / l) I`` (see :mod:`~shellform.effects.axial`)."""
         x = q[self._dofs_t]

@@ -1,4 +1,4 @@
-"""The upper stencil Hessians of the isotropic bending and the twisting of rod hinges, compiled per hinge.
+"""The upper Hessians of rod hinges (isotropic bending and twisting) and rod edges (stretching), compiled.
 
 The same closed-form terms as :class:`~shellform.effects.rod_hinge.HingeHessian`
 (:func:`~shellform.effects.rod_hinge.binormal_energy_hessian` and
@@ -251,6 +251,35 @@ def scatter(data, first, second, hinges, values):
         for n in range(66):
             data[first[i, n]] += values[n, j]
             data[second[i, n]] += values[n, j]
+
+
+@_jit
+def add_stretch_values(q, dofs, EA, L, data, first, second):
+    """Add the upper Hessians of the stretching of the rod edges to ``data`` at ``first`` and ``second``
+    (int32 (m, 21)), in the order of
+    :meth:`~shellform.effects.rod_stretch.RodStretching.hessian_upper_pattern`: ``K`` by its upper triangle on
+    both nodes, ``-K = (N / l - k) n n^T - (N / l) I`` in full between them (``k = EA / L``)."""
+    v = np.empty(21)
+    for j in range(L.shape[0]):
+        e = dofs[j]
+        d = (q[e[3]] - q[e[0]], q[e[4]] - q[e[1]], q[e[5]] - q[e[2]])
+        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        k = EA[j] / L[j]
+        s = k * (length - L[j]) / length
+        c = (s - k) / (length * length)
+        n = 0
+        for a in range(3):
+            for b in range(3):
+                v[6 + 3 * a + b] = d[a] * (c * d[b])
+            v[6 + 4 * a] -= s
+        for a in range(3):
+            for b in range(a, 3):
+                v[n] = -v[6 + 3 * a + b]
+                v[15 + n] = v[n]
+                n += 1
+        for n in range(21):
+            data[first[j, n]] += v[n]
+            data[second[j, n]] += v[n]
 
 
 _NO_SLOTS = np.zeros((0, 66), dtype=np.int32)
