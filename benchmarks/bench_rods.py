@@ -11,8 +11,11 @@ several repeats, all in one run.
 benchmark (``--hemisphere-n`` rods per direction, apex prescribed, state
 perturbed so that every term is active): each effect's Hessian values as the
 tangent takes them (the upper triangles of the element blocks where the
-effect gives them), the bending and twisting together in one pass
-(``hinges``, as the tangent evaluates them), the free tangent as the
+effect gives them; the stretching added straight into the tangent's data
+where the System does so), the bending and twisting together in one pass
+(``hinges``, as the tangent evaluates them: added straight into the
+tangent's data by the compiled kernel where numba is installed), the free
+tangent as the
 continuation assembles it (``System.tangent_free``), and
 a numeric refactorisation of that tangent with the symbolic analysis kept
 (CHOLMOD Cholesky and QDLDL LDL^T, each reusing its previous factor), best of
@@ -96,6 +99,27 @@ def summed_hinge_values(system, q):
     return lambda: type(hinges[0]).summed_hessian_upper_values(hinges, q)
 
 
+def direct_values(system, q, effect):
+    """Adding the values of the group of ``effect`` straight into the free tangent's data, where the System does
+    so (compiled kernels), else None."""
+    upper = getattr(system, "_upper_free", None)
+    direct = getattr(upper, "direct", {})
+    for g, (_, ks, _) in enumerate(system._upper[0] if getattr(system, "_upper", None) is not None else []):
+        if g in direct and any(system.effects[k] is effect for k in ks):
+            data = np.zeros(upper.size)
+            return lambda: direct[g](q, data)
+    return None
+
+
+def tangent_hinge_values(system, q):
+    """The bending and twisting values as the free tangent takes them: added straight into its data where the
+    System does so, else summed in one pass."""
+    from shellform.effects.rod_hinge import HingeEffect
+
+    hinge = next(e for e in system.effects if isinstance(e, HingeEffect))
+    return direct_values(system, q, hinge) or summed_hinge_values(system, q)
+
+
 def run(n, edges_per_cell, repeat):
     system, q = dome_network(n, edges_per_cell)
     row = {"rods": 2 * n, "dof": system.n_dof, "free": system.n_free}
@@ -130,9 +154,11 @@ def hemisphere_tangent(n: int, repeat: int) -> dict:
     q[system.free] += 1e-4 * model.radius * rng.normal(size=system.n_free)
     row = {"n": n, "free": system.n_free}
     for e in system.effects:
-        if e.name in ("rod_stretch", "rod_bend", "rod_twist", "joints"):
+        if e.name in ("rod_bend", "rod_twist", "joints"):
             row[e.name] = best_of(lambda: tangent_values(e, q), repeat)[0]
-    row["hinges"] = best_of(summed_hinge_values(system, q), repeat)[0]
+        elif e.name == "rod_stretch":
+            row[e.name] = best_of(direct_values(system, q, e) or (lambda: tangent_values(e, q)), repeat)[0]
+    row["hinges"] = best_of(tangent_hinge_values(system, q), repeat)[0]
     row["tangent"], K = best_of(lambda: system.tangent_free(q), repeat)
     row["nnz"] = K.nnz
     # numeric refactorisations: the symbolic analysis of the previous factor is kept
