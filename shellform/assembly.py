@@ -3,7 +3,8 @@
 The :class:`System` owns the DOF partition (free, fixed, prescribed) and the
 sparsity pattern, both computed once. Each call to :meth:`System.tangent`
 only evaluates the effects' Hessian values and scatters them into the CSR data
-array with one ``np.bincount``: no Python loop over members.
+array (one ``np.bincount``, one product by a constant 0/1 matrix, or the
+effect's own compiled loop): no Python loop over members.
 
 Sign conventions
 ----------------

@@ -28,7 +28,11 @@ The isotropic bending and the twisting collect these terms in a
 :class:`HingeHessian`, which sums the outer products of all hinges with one
 batched product of small matrices and carries the sum of the effects to the
 stencil once, to the upper triangle of each stencil Hessian
-(:data:`UPPER_PAIRS`) for the System's tangents.
+(:data:`UPPER_PAIRS`) for the System's tangents. Where numba is installed the
+System's tangents take the same upper values from a kernel compiled per
+hinge (:mod:`.rod_compiled`, :meth:`HingeEffect.upper_scatter`), added
+straight into the tangent's data; the collection stays the reference and the
+form without numba.
 
 Array layout: the closed-form functions work on *component-major* arrays with
 the hinge index last (vectors ``(3, h)``, Hessians ``(8, 8, h)``), so that every
