@@ -107,7 +107,8 @@ def direct_values(system, q, effect):
     for g, (_, ks, _) in enumerate(system._upper[0] if getattr(system, "_upper", None) is not None else []):
         if g in direct and any(system.effects[k] is effect for k in ks):
             data = np.zeros(upper.size)
-            return lambda: direct[g](q, data)
+            effects = [system.effects[k] for k in ks]
+            return lambda: direct[g](effects, q, data)
     return None
 
 

@@ -85,7 +85,7 @@ class _UpperSum(NamedTuple):
     product: sp.csr_matrix  # the 0/1 matrix, by the rows of the data it fills
     rows: np.ndarray | None  # those rows, None for all
     size: int  # the length of the data with its last, dropped slot
-    direct: dict  # group index -> function (q, data) that adds the group's values itself
+    direct: dict  # group index -> function (effects, q, data) that adds the group's values itself
 
 
 class System:
@@ -230,7 +230,8 @@ class System:
         maps to -1 (a constrained DOF, for the free pattern) in none. A group
         whose effects add their values to the data themselves
         (``upper_scatter`` of their class, given the slots of every value and
-        of its mirror, the last slot for none) is left out of the matrix.
+        of its mirror, the last slot for none; it is handed the System's
+        effects of the group at each call) is left out of the matrix.
         """
         groups, buffer = self._upper
         n = pattern.shape[0]
@@ -301,8 +302,8 @@ class System:
         else:
             data = np.zeros(scatter.size)
             data[scatter.rows] = scatter.product @ buffer
-        for add in scatter.direct.values():
-            add(q, data)
+        for g, add in scatter.direct.items():
+            add([self.effects[k] for k in groups[g][1]], q, data)
         return data[:-1]
 
     def _group_values(self, values: dict) -> np.ndarray:

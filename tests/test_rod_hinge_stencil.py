@@ -198,3 +198,26 @@ def test_tangents_with_and_without_the_compiled_hinges(monkeypatch, ratio):
     assert np.allclose(K_free, total[np.ix_(system.free, system.free)], rtol=0, atol=tol)
     assert np.allclose(K0, K, rtol=0, atol=tol)
     assert np.allclose(K_free0, K_free, rtol=0, atol=tol)
+
+
+def test_a_copy_of_the_system_with_other_effects_takes_its_own():
+    """A shallow copy of a System with copies of its effects (another axial stiffness) assembles from those,
+    also where the effects add their values to the tangent's data themselves."""
+    from shellform.rods import build_rod_system
+    from shellform.solvers.relaxation.stiffness import with_stiffness_scale
+
+    rng = np.random.default_rng(6)
+    s, net = network_from(random_lines(rng, (5, 7)), natural=["rest", "straight"], twist=[0.1, 0.0], seed=1)
+    net.clamp(0, "start")
+    net.clamp(1, "end")
+    system = build_rod_system(net)
+    q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
+    stretch = next(e for e in system.effects if e.name == "rod_stretch")
+    K = system.tangent_free(q).toarray()
+    K_stretch = system.assemble_free({stretch: stretch.hessian_values(q)}).toarray()
+    soft = with_stiffness_scale(system, 1e-3)
+    expected = K - K_stretch + soft.assemble_free({e: e.hessian_values(q) for e in soft.effects
+                                                   if e.name == "rod_stretch"}).toarray()
+    tol = 1e-13 * np.abs(K).max()
+    assert np.allclose(soft.tangent_free(q).toarray(), expected, rtol=0, atol=tol)
+    assert np.allclose(system.tangent_free(q).toarray(), K, rtol=0, atol=0)

@@ -515,27 +515,28 @@ class HingeEffect(Effect):
 
     @classmethod
     def upper_scatter(cls, effects, first: np.ndarray, second: np.ndarray):
-        """A function ``add(q, data)`` that adds the summed upper stencil Hessians of ``effects`` (on the same
-        hinges) to the data of a sparse matrix, or None where it cannot (numba not installed, an effect without
-        :meth:`compiled_terms`).
+        """A function ``add(effects, q, data)`` that adds the summed upper stencil Hessians of ``effects`` (on
+        the same hinges) to the data of a sparse matrix, or None where it cannot (numba not installed, an
+        effect without :meth:`compiled_terms`).
 
         ``first`` and ``second`` give, for every value of
         :meth:`hessian_upper_pattern`, the slots in ``data`` of its entry and
-        of its mirror (a slot that is dropped where there is none).
+        of its mirror (the last slot where there is none). The function takes
+        the effects when it is called: a copy of the System with copies of its
+        effects (another stiffness, say) shares the slots.
         """
         from . import rod_compiled as compiled
 
-        first_effect = effects[0]
         if not compiled.available or any(type(e).compiled_terms is HingeEffect.compiled_terms
-                                         or e.frames is not first_effect.frames for e in effects):
+                                         or e.frames is not effects[0].frames for e in effects):
             return None
-        h = first_effect.stencil.shape[0]
+        h = effects[0].stencil.shape[0]
         # hinge-major: the kernel adds the values of one hinge after the other
         first, second = (np.ascontiguousarray(view(a, (66, h)).T, dtype=np.int32) for a in (first, second))
 
-        def add(q: np.ndarray, data: np.ndarray) -> None:
+        def add(effects, q: np.ndarray, data: np.ndarray) -> None:
             terms = HingeEffect._compiled_terms(effects, q)
-            compiled.add_upper_values(*first_effect.frames.hinge_tangents(q), terms.get("bending"),
+            compiled.add_upper_values(*effects[0].frames.hinge_tangents(q), terms.get("bending"),
                                       terms.get("twisting"), data, first, second)
             for sub, H in terms["whole"]:
                 compiled.scatter(data, first, second, sub, _stencil_upper(H))

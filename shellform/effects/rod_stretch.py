@@ -85,9 +85,9 @@ class RodStretching(AxialBar):
 
     @classmethod
     def upper_scatter(cls, effects, first, second):
-        """A function ``add(q, data)`` that adds the upper Hessian values to the data of a sparse matrix at the
-        slots ``first`` (of every value) and ``second`` (of its mirror), compiled; None without numba or for
-        another force law (see :meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`)."""
+        """A function ``add(effects, q, data)`` that adds the upper Hessian values to the data of a sparse matrix
+        at the slots ``first`` (of every value) and ``second`` (of its mirror), compiled; None without numba or
+        for another force law (see :meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`)."""
         from . import rod_compiled as compiled
 
         e = effects[0]
@@ -97,8 +97,9 @@ class RodStretching(AxialBar):
         m = len(e.conn)
         first, second = (np.ascontiguousarray(a.reshape(21, m).T, dtype=np.int32) for a in (first, second))
 
-        def add(q: np.ndarray, data: np.ndarray) -> None:
-            compiled.add_stretch_values(q, e.dofs, e.EA, e.L, data, first, second)
+        def add(effects, q: np.ndarray, data: np.ndarray) -> None:
+            e, = effects
+            compiled.add_stretch_values(q, e.dofs, np.asarray(e.EA, dtype=float), e.L, data, first, second)
 
         return add
 
