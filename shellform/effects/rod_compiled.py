@@ -277,7 +277,7 @@ def scatter(data, first, second, hinges, values):
 @_jit
 def add_stretch_values(q, dofs, EA, L, data, first, second):
     """Add the upper Hessians of the stretching of the rod edges to ``data`` at ``first`` and ``second``
-    (int32 (m, 21); the last slot of ``data`` left alone), in the order of
+    ((m, 21), :func:`element_major`; the last slot of ``data`` left alone), in the order of
     :meth:`~shellform.effects.rod_stretch.RodStretching.hessian_upper_pattern`: ``K`` by its upper triangle on
     both nodes, ``-K = (N / l - k) n n^T - (N / l) I`` in full between them (``k = EA / L``)."""
     v = np.empty(21)
@@ -307,6 +307,13 @@ def add_stretch_values(q, dofs, EA, L, data, first, second):
                 data[g] += v[n]
 
 
+def element_major(slots: np.ndarray, k: int) -> np.ndarray:
+    """Slots of ``k`` values per element, value-major ``(k m,)`` as the patterns list them, as the kernels read
+    them: element-major ``(m, k)``, int32 unless a slot does not fit."""
+    a = np.reshape(slots, (k, -1)).T
+    return np.ascontiguousarray(a, dtype=np.int32 if a.size == 0 or a.max() < 2**31 else np.int64)
+
+
 _NO_SLOTS = np.zeros((0, 66), dtype=np.int32)
 
 
@@ -333,6 +340,7 @@ def upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: TwistInpu
 
 def add_upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: TwistInputs | None, data: np.ndarray,
                      first: np.ndarray, second: np.ndarray) -> None:
-    """Add the values of :func:`upper_values` to ``data`` at ``first`` and ``second`` (int32 (h, 66): the slots
-    of each hinge's values and of their mirrors; the last slot of ``data``, which is left alone, for none)."""
+    """Add the values of :func:`upper_values` to ``data`` at ``first`` and ``second`` ((h, 66),
+    :func:`element_major`: the slots of each hinge's values and of their mirrors; the last slot of ``data``,
+    which is left alone, for none)."""
     kernel(*_inputs(t0, t1, l0, l1, bending, twisting), data, first, second)

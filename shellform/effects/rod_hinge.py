@@ -241,8 +241,8 @@ UPPER_PAIRS = _upper_pairs()
 # flat indices into a Hessian over z (8, 8) and into a 3 x 3 block
 _Z_TT = np.array([54, 55, 63])  # H_{theta theta}, upper
 _BLOCK_UPPER = np.array([0, 1, 2, 4, 5, 8])
-_STENCIL_UPPER = UPPER_PAIRS[:, 0] * 11 + UPPER_PAIRS[:, 1]  # UPPER_PAIRS as flat indices into (11, 11)
 _BLOCK_UPPER_T = np.array([0, 3, 6, 4, 7, 8])
+_STENCIL_UPPER = UPPER_PAIRS[:, 0] * 11 + UPPER_PAIRS[:, 1]  # UPPER_PAIRS as flat indices into (11, 11)
 
 
 def _stencil_upper(Hz: np.ndarray) -> np.ndarray:
@@ -530,9 +530,8 @@ class HingeEffect(Effect):
         if not compiled.available or any(type(e).compiled_terms is HingeEffect.compiled_terms
                                          or e.frames is not effects[0].frames for e in effects):
             return None
-        h = effects[0].stencil.shape[0]
         # hinge-major: the kernel adds the values of one hinge after the other
-        first, second = (np.ascontiguousarray(view(a, (66, h)).T, dtype=np.int32) for a in (first, second))
+        first, second = (compiled.element_major(a, 66) for a in (first, second))
 
         def add(effects, q: np.ndarray, data: np.ndarray) -> None:
             terms = HingeEffect._compiled_terms(effects, q)

@@ -94,8 +94,7 @@ class RodStretching(AxialBar):
         if not compiled.available or len(effects) > 1 or type(e)._force is not AxialBar._force \
                 or type(e)._active is not AxialBar._active:
             return None
-        m = len(e.conn)
-        first, second = (np.ascontiguousarray(a.reshape(21, m).T, dtype=np.int32) for a in (first, second))
+        first, second = (compiled.element_major(a, 21) for a in (first, second))
 
         def add(effects, q: np.ndarray, data: np.ndarray) -> None:
             e, = effects
