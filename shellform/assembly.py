@@ -17,8 +17,6 @@ structure) are ``r[constrained]``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NamedTuple
-
 import numpy as np
 import scipy.sparse as sp
 
@@ -26,66 +24,8 @@ from .effects import AxialBar, Effect, Rope, gravity_effect, nodal_load_effects
 from .effects.sliding import sliding_effects
 from .errors import ModelError
 from .model import Structure
-
-
-def _same_pattern(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
-    """Whether two Hessian patterns list the same entries in the same order."""
-    return all(x is y or np.array_equal(x, y) for x, y in zip(a, b))
-
-
-def _stable_order(key: np.ndarray, n_keys: int) -> np.ndarray:
-    """The stable permutation that sorts the integers ``key`` (``0 <= key < n_keys``): a counting sort.
-
-    The conversion of a COO matrix with one column per entry to CSR sorts by
-    row (``key``) in linear time, and within a row the canonical column order
-    is the entries' order.
-    """
-    m = key.size
-    index = np.int32 if max(m, n_keys) < 2**31 - 1 else np.int64
-    M = sp.coo_matrix((np.ones(m, dtype=np.int8), (key.astype(index, copy=False), np.arange(m, dtype=index))),
-                      shape=(n_keys, max(m, 1))).tocsr()
-    if not M.has_sorted_indices:
-        M.sort_indices()
-    return M.indices.astype(np.int64, copy=False)
-
-
-class _Pattern:
-    """CSR pattern of a set of COO triplets, with the map from triplet to CSR slot.
-
-    Two counting sorts (by column, then stably by row) order the triplets;
-    duplicates are then neighbours. On a net of 10^5 nodes (7.2 million
-    triplets) this takes a fraction of a comparison sort of the entries'
-    keys (``benchmarks/bench_assembly.py --setup``).
-    """
-
-    def __init__(self, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]):
-        n_rows, n_cols = shape
-        order = _stable_order(cols, n_cols)
-        order = order[_stable_order(rows[order], n_rows)]
-        r, c = rows[order], cols[order]
-        first = np.ones(order.size, dtype=bool)
-        first[1:] = (r[1:] != r[:-1]) | (c[1:] != c[:-1])
-        self.slot = np.empty(order.size, dtype=np.int64)
-        self.slot[order] = np.cumsum(first) - 1
-        self.indices = c[first].astype(np.int32)
-        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(r[first], minlength=n_rows))]).astype(np.int32)
-        self.nnz = int(np.count_nonzero(first))
-        self.shape = shape
-        self.rows = r[first]  # row of each stored entry
-
-    def matrix(self, vals: np.ndarray) -> sp.csr_matrix:
-        data = np.bincount(self.slot, weights=vals, minlength=self.nnz)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
-
-
-class _UpperSum(NamedTuple):
-    """How :class:`System` sums the values of effects that give upper triangles into CSR data
-    (:meth:`System._upper_scatter`)."""
-
-    product: sp.csr_matrix  # the 0/1 matrix, by the rows of the data it fills
-    rows: np.ndarray | None  # those rows, None for all
-    size: int  # the length of the data with its last, dropped slot
-    direct: dict  # group index -> function (effects, q, data) that adds the group's values itself
+from .sparse_pattern import Pattern, same_pattern
+from .upper_tangent import UpperTangent
 
 
 class System:
@@ -121,32 +61,17 @@ class System:
             raise ModelError("every DOF is constrained: there is nothing to solve for")
 
         rows, cols = self._pattern_triplets()
-        self._full = _Pattern(rows, cols, (self.n_dof, self.n_dof))
+        self._full = Pattern(rows, cols, (self.n_dof, self.n_dof))
         free_index = np.full(self.n_dof, -1, dtype=np.int64)
         free_index[self.free] = np.arange(self.free.size)
-        # the free pattern is the full one's entries in free rows and columns, in the same order
-        # (renumbering the free DOFs keeps their order)
-        full = self._full
-        entry_rows = free_index[full.rows]
-        entry_cols = free_index[full.indices]
-        in_ff = (entry_rows >= 0) & (entry_cols >= 0)
-        n_f = self.free.size
-        self._ff = _Pattern.__new__(_Pattern)
-        self._ff.indices = entry_cols[in_ff].astype(np.int32)
-        self._ff.indptr = np.concatenate([[0], np.cumsum(np.bincount(entry_rows[in_ff], minlength=n_f))]).astype(np.int32)
-        self._ff.nnz = int(np.count_nonzero(in_ff))
-        self._ff.shape = (n_f, n_f)
-        self._ff.slot = self._ff.rows = None
-        # the free pattern's slot of every entry, and one slot past the end (a bin that is dropped)
-        # for entries in a held row or column: effects' values then scatter without being masked
-        full_to_ff = np.full(full.nnz, self._ff.nnz, dtype=np.int64)
-        full_to_ff[in_ff] = np.arange(self._ff.nnz)
-        self._ff_slot = full_to_ff[full.slot]
-        full.rows = None
+        # the free pattern: the full one's entries in free rows and columns, in the same order (renumbering
+        # the free DOFs keeps their order), and the slot there of every triplet
+        self._ff, self._ff_slot = self._full.restricted(free_index)
+        self._full.rows = None
         # effects that give the upper triangles of their element blocks: the tangents from those
-        self._upper = self._upper_groups()
+        self._upper = UpperTangent.of(self.effects, self._ranges)
         if self._upper is not None:
-            self._upper_free = self._upper_scatter(free_index, self._ff, self._ff_slot)
+            self._upper_free = self._upper.scatter(self.effects, free_index, self._ff, self._ff_slot)
             self._upper_full = None  # built on first use
         self._measures = None  # pattern of the held measures' Jacobian, built on first use
 
@@ -167,7 +92,7 @@ class System:
         for k, e in enumerate(self.effects):
             r, c = e.hessian_pattern()
             shared = next((g for g in self._groups if len(r) and self._ranges[g[0]][1] - self._ranges[g[0]][0] == len(r)
-                           and _same_pattern(self.effects[g[0]].hessian_pattern(), (r, c))), None)
+                           and same_pattern(self.effects[g[0]].hessian_pattern(), (r, c))), None)
             if shared is not None:
                 shared.append(k)
                 self._ranges.append(self._ranges[shared[0]])
@@ -184,127 +109,6 @@ class System:
         rows.append(diag)
         cols.append(diag)
         return np.concatenate(rows), np.concatenate(cols)
-
-    def _upper_groups(self):
-        """How the values of :meth:`tangent_free` and :meth:`tangent` are laid out, when some effect gives upper
-        triangles (:meth:`Effect.hessian_upper_pattern`); None otherwise.
-
-        One buffer holds a slice per group: the effects with equal upper
-        patterns, summed by their class, and the other effects' full Hessian
-        values (summed over effects sharing a pattern). Returns ``(groups,
-        buffer)``, each group ``(kind, effect indices, slice)``.
-        """
-        upper = [e.hessian_upper_pattern() for e in self.effects]
-        if all(u is None for u in upper):
-            return None
-        groups, count = [], 0
-        for k, e in enumerate(self.effects):
-            if upper[k] is not None:
-                r = upper[k][0]
-                shared = next((g for g in groups if g[0] == "upper" and len(upper[g[1][0]][0]) == len(r)
-                               and _same_pattern(upper[g[1][0]], upper[k])), None)
-                size = len(r)
-                kind = "upper"
-            else:
-                start, end = self._ranges[k]
-                if end == start:
-                    continue
-                shared = next((g for g in groups if g[0] == "full" and self._ranges[g[1][0]] == (start, end)), None)
-                size = end - start
-                kind = "full"
-            if shared is not None:
-                shared[1].append(k)
-            else:
-                groups.append([kind, [k], slice(count, count + size)])
-                count += size
-        return [(kind, tuple(ks), sl) for kind, ks, sl in groups], np.zeros(count)
-
-    def _upper_scatter(self, index: np.ndarray, pattern: _Pattern, slot: np.ndarray) -> _UpperSum:
-        """How the values of :meth:`_upper_groups` are summed into the CSR data of ``pattern``.
-
-        A constant 0/1 matrix with one row per entry of the pattern (and an
-        empty last row), one column per value of the buffer: a full Hessian
-        value sits in the row of its entry (``slot``, by triplet of the full
-        patterns), a mirrored upper value in the rows of its entry and of the
-        transposed entry; values in a row or column of a DOF that ``index``
-        maps to -1 (a constrained DOF, for the free pattern) in none. A group
-        whose effects add their values to the data themselves
-        (``upper_scatter`` of their class, given the slots of every value and
-        of its mirror, the last slot for none; it is handed the System's
-        effects of the group at each call) is left out of the matrix.
-        """
-        groups, buffer = self._upper
-        n = pattern.shape[0]
-        dropped = pattern.nnz  # the last row of S, the last slot of the data: cut off
-        keys = pattern.indices.astype(np.int64)
-        keys += np.repeat(np.arange(n, dtype=np.int64) * n, np.diff(pattern.indptr))  # ascending (canonical CSR)
-        rows, cols = [], []
-        direct = {}
-        for g, (kind, ks, sl) in enumerate(groups):
-            e = self.effects[ks[0]]
-            if kind == "upper":
-                r, c, mirrored = e.hessian_upper_pattern()
-                fr, fc = index[r], index[c]
-                keep = (fr >= 0) & (fc >= 0)
-                first = np.flatnonzero(keep)
-                twice = np.flatnonzero(keep & np.asarray(mirrored, dtype=bool))
-                slots = []
-                for a, b, sel in ((fr, fc, first), (fc, fr, twice)):
-                    key = a[sel] * n + b[sel]
-                    pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
-                    if np.any(keys[pos] != key):
-                        raise ModelError(f"effect {e.name!r}: its upper Hessian pattern has entries outside its "
-                                         f"Hessian pattern")
-                    slots.append((pos, sel))
-                own = getattr(type(e), "upper_scatter", None)
-                if own is not None:
-                    at = [np.full(len(r), dropped, dtype=np.int64) for _ in slots]
-                    for a, (pos, sel) in zip(at, slots):
-                        a[sel] = pos
-                    add = own([self.effects[k] for k in ks], *at)
-                    if add is not None:
-                        direct[g] = add
-                        continue
-                for pos, sel in slots:
-                    rows.append(pos)
-                    cols.append(sl.start + sel)
-            else:
-                start, end = self._ranges[ks[0]]
-                at = slot[start:end]
-                sel = np.flatnonzero(at < pattern.nnz)
-                rows.append(at[sel])
-                cols.append(sl.start + sel)
-        rows = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
-        cols = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
-        S = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(pattern.nnz + 1, buffer.size)).tocsr()
-        S.sum_duplicates()
-        if not direct:
-            return _UpperSum(S, None, S.shape[0], direct)
-        # the product then fills only the rows it has: over all rows it took as long as the stretching values
-        filled = np.flatnonzero(np.diff(S.indptr))
-        return _UpperSum(S[filled], filled, S.shape[0], direct)
-
-    def _upper_data(self, q: np.ndarray, scatter: _UpperSum) -> np.ndarray:
-        """The CSR data at ``q`` from the effects' values, summed as :meth:`_upper_scatter` says."""
-        groups, buffer = self._upper
-        for g, (kind, ks, sl) in enumerate(groups):
-            if g in scatter.direct:
-                continue
-            if kind == "upper":
-                effects = [self.effects[k] for k in ks]
-                type(effects[0]).summed_hessian_upper_values(effects, q, out=buffer[sl])
-            else:
-                buffer[sl] = self.effects[ks[0]].hessian_values(q)
-                for k in ks[1:]:
-                    buffer[sl] += self.effects[k].hessian_values(q)
-        if scatter.rows is None:
-            data = scatter.product @ buffer
-        else:
-            data = np.zeros(scatter.size)
-            data[scatter.rows] = scatter.product @ buffer
-        for g, add in scatter.direct.items():
-            add([self.effects[k] for k in groups[g][1]], q, data)
-        return data[:-1]
 
     def _group_values(self, values: dict) -> np.ndarray:
         """The values of all triplets from values by effect index (summed over effects sharing a pattern; zero
@@ -392,8 +196,9 @@ class System:
         """
         if self._upper is not None:
             if self._upper_full is None:
-                self._upper_full = self._upper_scatter(np.arange(self.n_dof), self._full, self._full.slot)
-            data = self._upper_data(q, self._upper_full)
+                self._upper_full = self._upper.scatter(self.effects, np.arange(self.n_dof), self._full,
+                                                       self._full.slot)
+            data = self._upper.data(self.effects, q, self._upper_full)
             return sp.csr_matrix((data, self._full.indices, self._full.indptr), shape=self._full.shape)
         vals = self._group_values({k: e.hessian_values(q) for k, e in enumerate(self.effects)})
         return self._full.matrix(np.concatenate([vals, np.zeros(self.n_dof)]))
@@ -405,10 +210,10 @@ class System:
         (:meth:`Effect.hessian_upper_pattern`) compute and scatter only those;
         the scatter fills the free pattern's data with one product by a
         constant 0/1 matrix, or the effects add their values to it themselves
-        (:meth:`_upper_scatter`); :meth:`tangent` alike.
+        (:class:`~shellform.upper_tangent.UpperTangent`); :meth:`tangent` alike.
         """
         if self._upper is not None:
-            data = self._upper_data(q, self._upper_free)
+            data = self._upper.data(self.effects, q, self._upper_free)
             return sp.csr_matrix((data, self._ff.indices, self._ff.indptr), shape=self._ff.shape)
         return self._free_matrix({k: e.hessian_values(q) for k, e in enumerate(self.effects)
                                   if self._ranges[k][1] > self._ranges[k][0]})
@@ -502,7 +307,7 @@ class System:
             active = np.unique(rows[keep])
             renumber = np.full(count, -1, dtype=np.int64)
             renumber[active] = np.arange(active.size)
-            pattern = _Pattern(renumber[rows[keep]], cols[keep], (active.size, self.free.size))
+            pattern = Pattern(renumber[rows[keep]], cols[keep], (active.size, self.free.size))
             self._measures = (active, keep, pattern)
         active, keep, pattern = self._measures
         values = np.concatenate([m[0] for m in parts])[active]

@@ -9,7 +9,7 @@ PACKAGE = Path(__file__).parents[1] / "shellform"
 LAYERS = [
     ("errors", "progress", "model", "geometry"),
     ("effects",),
-    ("assembly", "fingerprint"),
+    ("sparse_pattern", "upper_tangent", "assembly", "fingerprint"),
     ("solvers",),
     ("rods", "mra", "gridshell"),
     ("io",),

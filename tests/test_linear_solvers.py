@@ -210,13 +210,13 @@ def test_dense_eigenvalues_run_on_one_blas_thread_inside_the_block_only():
 def test_system_pattern_is_the_sorted_set_of_its_triplets():
     """The CSR pattern (and each triplet's slot in it) that every factorisation of a System works on,
     against a comparison sort of the triplets' keys; duplicates, empty rows and an unsorted input."""
-    from shellform.assembly import _Pattern
+    from shellform.sparse_pattern import Pattern
 
     rng = np.random.default_rng(7)
     n_rows, n_cols = 57, 41
     rows = rng.integers(0, n_rows - 3, 2000)  # the last rows stay empty
     cols = rng.integers(0, n_cols, 2000)
-    P = _Pattern(rows, cols, (n_rows, n_cols))
+    P = Pattern(rows, cols, (n_rows, n_cols))
     key = rows * n_cols + cols
     unique, slot = np.unique(key, return_inverse=True)
     assert P.nnz == unique.size

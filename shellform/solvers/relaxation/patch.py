@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ...assembly import _Pattern
+from ...sparse_pattern import Pattern
 from .ropes import is_axial
 
 
@@ -138,7 +138,7 @@ class Patch:
         rows = np.concatenate([local[e.hessian_pattern()[0]] for e in self.effects] + [np.arange(self.moving.size)])
         cols = np.concatenate([local[e.hessian_pattern()[1]] for e in self.effects] + [np.arange(self.moving.size)])
         self._keep = (rows >= 0) & (cols >= 0)
-        self._pattern = _Pattern(rows[self._keep], cols[self._keep], (self.moving.size,) * 2)
+        self._pattern = Pattern(rows[self._keep], cols[self._keep], (self.moving.size,) * 2)
 
     @property
     def n_moving(self) -> int:
