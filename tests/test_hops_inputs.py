@@ -239,3 +239,46 @@ def test_bad_lines_name_the_input_and_the_problem(server):
     body["values"][0]["InnerTree"]["{0}"].insert(0, {"type": "Rhino.Geometry.Point3d",
                                                      "data": '{"X": 0.0, "Y": 0.0, "Z": 0.0}'})
     assert _error(server, body) == "Lines: item 0 is a point or a list, not a line or a curve"
+
+
+def test_gridshell_of_timber_laths_matches_the_rod_scene(server):
+    """Rectangular laths (50 x 30 mm, E = 10 GPa) on the dome's lines: the section's keys reach the scene, with
+    MassPerLength spread over the rectangle's area."""
+    n = 5
+    grid = dome_grid(n)
+    curves = [polyline_curve(grid[i, :]) for i in range(n)] + [polyline_curve(grid[:, j]) for j in range(n)]
+    depth, width, density, mass_per_length = 0.03, 0.05, 500.0, 2.0
+    status, text = post(server, request("Gridshell", Lines=curves, Section="rectangle", Depth=depth, Width=width,
+                                        E=10.0e9, Density=density, NodeMass=20.0, MassPerLength=mass_per_length,
+                                        RestShape="found"))
+    reply, out = outputs(text)
+    assert status == 200 and reply["errors"] == [], reply["errors"]
+    idx = np.arange(n * n).reshape(n, n)
+    ends = np.unique(np.concatenate([idx[0], idx[-1], idx[:, 0], idx[:, -1]]))
+    ref = sf.run(parse_scene({
+        "nodes": {"coordinates": grid.reshape(-1, 3).tolist()},
+        "rods": {"E": 10.0e9, "section": "rectangle", "depth": depth, "width": width, "rest_shape": "found",
+                 "density": density + mass_per_length / (depth * width),
+                 "lines": [{"nodes": idx[i].tolist()} for i in range(n)] + [{"nodes": idx[:, j].tolist()}
+                                                                            for j in range(n)]},
+        "masses": {"node_mass": 20.0}, "supports": [{"nodes": ends.tolist()}], "gravity": {"scaled": True},
+        "analysis": {"type": "continuation", "continuation": {"control": "load", "parameter_max": 100.0,
+                                                              "max_steps": 60, "on_bifurcation": "stop"}}}))
+    event = ref.events[0]
+    assert out["CriticalLoadFactor"] == [pytest.approx(event["lam"], rel=1e-12)]
+    crit = ref.mesh(event["file"])
+    moment = np.abs(crit.cell_data["bending_moment"][0]).max()
+    np.testing.assert_allclose(out["BendingMoment"], crit.cell_data["bending_moment"][0], rtol=0,
+                               atol=1e-10 * moment)
+
+
+@pytest.mark.parametrize("inputs, name, message", [
+    ({"Section": "square"}, "Section", "square"),
+    ({"Depth": 0.03}, "Depth", "does not apply to section = 'circle'"),
+    ({"Section": "rectangle", "Width": 0.05}, "Depth", "required for section = 'rectangle'"),
+])
+def test_bad_section_inputs_name_the_input(server, inputs, name, message):
+    grid = dome_grid(3)
+    curves = [polyline_curve(grid[i, :]) for i in range(3)] + [polyline_curve(grid[:, j]) for j in range(3)]
+    error = _error(server, request("Gridshell", Lines=curves, **inputs))
+    assert error.startswith(f"{name}:") and message in error, error

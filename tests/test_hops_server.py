@@ -233,13 +233,17 @@ def test_lengths_with_control_matches_the_scene(server):
 GRIDSHELL = dict(Boundary=rectangle(0.0, 0.0, 6.0, 6.0), Divisions=6, Slack=0.05, Radius=0.004, MaxSteps=40)
 
 
-def test_gridshell_matches_the_scene(server):
-    status, text = post(server, request("Gridshell", **GRIDSHELL))
+@pytest.mark.parametrize("section, rods", [
+    ({}, {"radius": 0.004}),
+    ({"Section": "rectangle", "Depth": 0.006, "Width": 0.01}, {"section": "rectangle", "depth": 0.006, "width": 0.01}),
+], ids=["circle", "lath"])
+def test_gridshell_matches_the_scene(server, section, rods):
+    status, text = post(server, request("Gridshell", **{**GRIDSHELL, **section}))
     reply, out = outputs(text)
     assert status == 200 and reply["errors"] == [], reply["errors"]
     ref = sf.run(parse_scene({
         "geometry": {"type": "rectangle", "length_x": 6.0, "length_y": 6.0, "n_i": 6, "n_j": 6},
-        "supports": [{"groups": ["boundary"]}], "ropes": {"slack": 0.05}, "rods": {"radius": 0.004},
+        "supports": [{"groups": ["boundary"]}], "ropes": {"slack": 0.05}, "rods": rods,
         "analysis": {"type": "form_and_buckle", "buckling": {"max_steps": 40}}}))
     b = ref.summary["buckling"]
     assert b["critical_load_factor"] is not None

@@ -365,7 +365,15 @@ _GRIDSHELL_INPUTS = _FORM_INPUTS[:2] + (
     Param("SegmentLength", "Number", "Lines: curves that are not polylines are divided into segments at most this "
           "long (default: the model's size / 20); lines and polylines keep their vertices", "m", optional=True),
 ) + _FORM_INPUTS[2:] + (
-    Param("Radius", "Number", "Radius of the rods' solid circular section", "m", default=0.02, key="rods.radius"),
+    Param("Section", "Text", "Shape of the rods' section: circle (Radius), hollow_circle (Radius, Thickness) or "
+          "rectangle (Depth across the surface, Width in it); its area, stiffnesses and extreme fibres are computed",
+          default="circle", key="rods.section"),
+    Param("Radius", "Number", "Radius of a circle, outer radius of a hollow_circle", "m", default=0.02,
+          key="rods.radius"),
+    Param("Thickness", "Number", "Wall thickness of a hollow_circle", "m", optional=True, key="rods.thickness"),
+    Param("Depth", "Number", "Rectangle: the side across the surface (the thickness of a lath lying on it)", "m",
+          optional=True, key="rods.depth"),
+    Param("Width", "Number", "Rectangle: the side in the surface", "m", optional=True, key="rods.width"),
     Param("E", "Number", "Young's modulus of the rods", "Pa", default=210.0e9, key="rods.E"),
     Param("G", "Number", "Shear modulus of the rods (default E / 2.6)", "Pa", optional=True, key="rods.G"),
     Param("Density", "Number", "Density of the rods (their weight adds to the net's)", "kg/m^3", default=0.0,
@@ -385,7 +393,7 @@ _GRIDSHELL_INPUTS = _FORM_INPUTS[:2] + (
 
 
 def _gridshell_scene(v: dict) -> Built:
-    from .rod_lines import lines_scene
+    from .rod_lines import lines_scene, section_keys
 
     source = one_source(v, ("Boundary", "Mesh", "Lines"), "the planform outline to mesh (Boundary), the net "
                         "(Mesh) or the rods (Lines)")
@@ -394,7 +402,7 @@ def _gridshell_scene(v: dict) -> Built:
     if v["SegmentLength"] is not None:
         raise InputError("SegmentLength", "applies to Lines")
     built = form_scene(v, "form_and_buckle")
-    rods = {"radius": v["Radius"], "E": v["E"], "density": v["Density"], "rest_shape": v["RestShape"],
+    rods = {**section_keys(v), "E": v["E"], "density": v["Density"], "rest_shape": v["RestShape"],
             "G": v["G"], "joints": v["Joints"], "joint_rotational_stiffness": v["JointStiffness"]}
     built.scene["rods"] = rods
     built.scene["analysis"]["buckling"] = {"load_factor_max": v["LoadFactorMax"], "max_steps": v["MaxSteps"]}

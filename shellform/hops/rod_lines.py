@@ -17,6 +17,7 @@ import numpy as np
 
 from .component import JOIN_TOLERANCE, Built, nearest_nodes
 from .nets import centreline
+from ..errors import ShellformError
 from .protocol import InputError
 
 #: a smooth curve is divided into segments of the model's size over this, unless SegmentLength says
@@ -199,7 +200,7 @@ def lines_scene(v: dict) -> Built:
             raise InputError(name, "applies to a Boundary outline; Lines are the rods as given")
     lines = rod_lines(v["Lines"], v["SegmentLength"])
     supported = lines_supports(v, lines)
-    rods = {"radius": v["Radius"], "E": v["E"], "G": v["G"], "density": _density(v), "rest_shape": v["RestShape"],
+    rods = {**section_keys(v), "E": v["E"], "G": v["G"], "density": _density(v), "rest_shape": v["RestShape"],
             "joints": v["Joints"], "joint_rotational_stiffness": v["JointStiffness"],
             "lines": [{"nodes": c.tolist(), "closed": cl} for c, cl in zip(lines.chains, lines.closed)]}
     scene = {
@@ -215,16 +216,33 @@ def lines_scene(v: dict) -> Built:
     }
     keys = {"nodes": "Lines", "rods.lines": "Lines", "rods": "Lines", "supports": "Supports",
             "masses.node_mass": "NodeMass", "analysis.continuation.parameter_max": "LoadFactorMax",
-            "analysis.continuation.max_steps": "MaxSteps", "rods.radius": "Radius", "rods.E": "E", "rods.G": "G",
+            "analysis.continuation.max_steps": "MaxSteps", "rods.radius": "Radius", "rods.section": "Section",
+            "rods.thickness": "Thickness", "rods.depth": "Depth", "rods.width": "Width", "rods.E": "E", "rods.G": "G",
             "rods.density": "Density", "rods.rest_shape": "RestShape", "rods.joints": "Joints",
             "rods.joint_rotational_stiffness": "JointStiffness"}
     return Built(scene, keys, {"lines": lines})
 
 
+def section_keys(v: dict) -> dict:
+    """The scene keys of the section inputs: a rectangle has no radius (Radius has a default), the others only
+    what is given, so that the scene's checks name a dimension that does not apply."""
+    keys = {"section": v["Section"], "thickness": v["Thickness"], "depth": v["Depth"], "width": v["Width"]}
+    if v["Section"] != "rectangle":
+        keys["radius"] = v["Radius"]
+    return {k: x for k, x in keys.items() if x is not None}
+
+
 def _density(v: dict):
     """The rods' density with MassPerLength spread over their section: their weight per metre besides Density's."""
-    r, rho, mass = v["Radius"], v["Density"], v["MassPerLength"]
-    numbers = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (r, rho, mass))
-    if not numbers or not r > 0 or not mass > 0:
-        return rho  # nothing to add, or the scene's check names what is wrong
-    return rho + mass / (np.pi * r**2)
+    from ..geometry.sections import hollow_circle, rectangle, solid_circle
+
+    rho, mass = v["Density"], v["MassPerLength"]
+    if not (isinstance(mass, (int, float)) and not isinstance(mass, bool) and mass > 0):
+        return rho
+    try:
+        shape = {"circle": lambda: solid_circle(v["Radius"]),
+                 "hollow_circle": lambda: hollow_circle(v["Radius"], v["Thickness"]),
+                 "rectangle": lambda: rectangle(v["Depth"], v["Width"])}[v["Section"]]()
+    except (KeyError, TypeError, ValueError, ShellformError):
+        return rho  # the scene's check names what is wrong with the section
+    return rho + mass / shape.area
