@@ -51,6 +51,8 @@ class CurveSupports(Effect):
         super().__init__(n_dof)
         self.nodes = np.asarray(nodes, dtype=np.int64)
         self.curve = curve
+        # the curve as arrays, which a checkpoint's fingerprint of the effect takes in (it skips other objects)
+        self.curve_knots, self.curve_coefficients = curve.spline.t, curve.spline.c
         self.shift = np.asarray(shift, dtype=float).reshape(-1, 3)
         self.k = np.asarray(stiffness, dtype=float).reshape(-1)
         self.dofs = 3 * self.nodes[:, None] + np.arange(3)
