@@ -37,6 +37,20 @@ def network_from(lines, closed=(), natural=None, twist=None, seed=0, ratio=None,
 
 
 def check_effects(net, q, h=1e-6, tol=1e-6):
+    """Finite-difference checks of every effect, with the compiled hinge kernels (where numba is installed) and
+    with the NumPy form."""
+    from shellform.effects import rod_compiled
+
+    installed = rod_compiled.available
+    try:
+        for available in {installed, False}:
+            rod_compiled.available = available
+            _check_effects(net, q, h, tol)
+    finally:
+        rod_compiled.available = installed
+
+
+def _check_effects(net, q, h, tol):
     for e in net.effects():
         g = e.gradient(q)
         assert all_finite(g), e.name

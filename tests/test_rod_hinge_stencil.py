@@ -164,6 +164,35 @@ def test_compiled_upper_values_are_the_collected_ones(ratio):
         assert np.all(np.abs(got - expected) <= 1e-12 * scale), [e.name for e in effects]
 
 
+@pytest.mark.parametrize("natural", [["rest", "straight", "rest"], ["straight"] * 3])
+@pytest.mark.parametrize("ratio", [None, "random"])
+def test_compiled_energies_and_gradients_are_the_numpy_ones(monkeypatch, ratio, natural):
+    """The compiled hinge energies, gradients and force magnitudes against the NumPy form, hinge by hinge, with
+    and without natural curvature and anisotropy (whose material-frame terms stay NumPy)."""
+    pytest.importorskip("numba")
+    from shellform.effects import rod_compiled
+
+    rng = np.random.default_rng(12)
+    s, net = network_from(random_lines(rng, (4, 7, 9)), closed=(2,), natural=natural, twist=[0.3, 0.0, -0.2],
+                          seed=5, ratio=ratio)
+    q1 = s.reference_state() + 0.2 * rng.normal(size=s.n_dof)
+    net.frames.update(q1)
+    q = q1 + 0.3 * rng.normal(size=s.n_dof)
+    assert rod_compiled.available
+    for e in hinge_effects(net):
+        got = e._compiled_forces(q), e.energy(q), e.gradient(q), e.force_magnitudes(q)
+        with monkeypatch.context() as m:
+            m.setattr(rod_compiled, "available", False)
+            assert e._compiled_forces(q) is None
+            expected = e._local(q, 0)[0], e.energy(q), e.gradient(q), e.force_magnitudes(q)
+        per_hinge, energy, *vectors = got
+        per_hinge0, energy0, *vectors0 = expected
+        assert np.all(np.abs(per_hinge - per_hinge0) <= 1e-13 * np.abs(per_hinge0).max()), e.name
+        assert energy == pytest.approx(energy0, rel=1e-13), e.name
+        for v, v0 in zip(vectors, vectors0):
+            assert np.all(np.abs(v - v0) <= 1e-13 * np.abs(v0).max()), e.name
+
+
 @pytest.mark.parametrize("ratio", [None, "random"])
 def test_tangents_with_and_without_the_compiled_hinges(monkeypatch, ratio):
     """The System's tangents with the hinge values added straight into the data equal those summed by the 0/1

@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rod_hinge import HingeEffect, binormal_energy_derivatives, binormal_energy_hessian, project_to_edges
+from .rod_hinge import (HingeEffect, binormal_energy_derivatives, binormal_energy_hessian, project_to_edges,
+                        stencil_gradient)
 from .rod_material_frame import curvature_binormal_jacobian, material_curvature_term, material_curvature_value
 from .rod_kinematics import curvature_binormal, material_curvatures, material_frames
 from .base import LineResults
@@ -114,6 +115,31 @@ class RodBending(HingeEffect):
             acc.whole.append((sub, self.k[sub] * Hz))
 
     hessian_slots = 2
+
+    def kernel_terms(self, q):
+        return {"bending": self.k}
+
+    def _compiled_forces(self, q, grad=None, absolute=False):
+        """The isotropic ``k |kb|^2`` compiled, the material-frame terms of the curved and anisotropic hinges added
+        in the NumPy form (the magnitudes of the summed forces of those hinges from the NumPy form alone)."""
+        if not (self.curved.size or self.aniso.size):
+            return super()._compiled_forces(q, grad, absolute)
+        if absolute:
+            return None
+        e = super()._compiled_forces(q, grad)
+        if e is None:
+            return None
+        t0, t1, l0, l1, theta = self._geometry(q)
+        extra = self._const.copy()
+        if grad is None:
+            self._add_frame_energies(t0, t1, theta, extra)
+        else:
+            for sub, es, gz, _ in self._frame_terms(t0, t1, l0, l1, theta, hessian=False):
+                extra[sub] += es
+                grad += np.bincount(self._dofs_t[:, sub].ravel(), weights=stencil_gradient(self.k[sub] * gz).ravel(),
+                                    minlength=self.n_dof)
+        e += self.k * extra
+        return e
 
     def compiled_terms(self, q):
         if not (self.curved.size or self.aniso.size):

@@ -1,4 +1,5 @@
-"""The upper Hessians of rod hinges (isotropic bending and twisting) and rod edges (stretching), compiled.
+"""The upper Hessians of rod hinges (isotropic bending and twisting) and rod edges (stretching), and the hinges'
+energies and gradients, compiled.
 
 The same closed-form terms as :class:`~shellform.effects.rod_hinge.HingeHessian`
 (:func:`~shellform.effects.rod_hinge.binormal_energy_hessian` and
@@ -18,6 +19,14 @@ The values are written to the ``(66, h)`` array of
 added straight into the data of the System's sparse tangent
 (:meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`), which saves
 the buffer of values and the product that sums them into the data.
+
+The energies and gradients of the same hinges (:func:`hinge_forces`) take
+their kinematics straight from the DOF vector, once per hinge, and add the
+stencil forces straight into the gradient: on the hemisphere's 926 hinges
+(n = 5) 40 us for the bending gradient and 70 us for the twisting one
+(the two arctangents of the reference twist most of it), against 160-180 us
+and 220 us in the NumPy form; an energy costs about as much as a gradient
+(the arctangents again).
 
 Vectors are tuples of three floats, which the compiler keeps in registers.
 Without numba (:data:`available` False) the hinge effects take the NumPy form.
@@ -122,12 +131,10 @@ def bending(t0, t1, i0, i1, c, k):
 
 
 @_jit
-def twisting(t0, t1, i0, i1, c, k, s0, s1, n2, d2, s1s0, dtheta, tau_bar):
-    """``U`` of ``k (tau - tau_bar)^2``
-    (:func:`~shellform.effects.rod_reference_twist.reference_twist_hessian`): the gradient ``g0, g1`` of
-    ``beta`` over the edge vectors, the right vectors of ``g`` (``y``) and of ``(0, x)`` (``z``), the terms
-    ``t0 P^T`` of the block ``00`` and ``01`` and ``t1 Q^T`` of ``10`` and ``11``, the ``d`` of the
-    blocks ``00, 01, 11``, the skew part of ``01`` (``[a]_x``) and ``2 k``."""
+def reference_twist(t0, t1, i0, i1, c, s0, s1, n2, d2, s1s0):
+    """The change ``beta`` of the reference twist from the stored state and its gradient ``g0, g1`` over the edge
+    vectors (:func:`~shellform.effects.rod_reference_twist.reference_twist_derivatives`), with the terms its
+    Hessian is built from."""
     gn0, gn1 = cross(t1, s0), cross(s0, t0)
     N1, N2 = dot(t0, gn0), dot(t1, n2)
     s0t1 = dot(s0, t1)
@@ -144,6 +151,18 @@ def twisting(t0, t1, i0, i1, c, k, s0, s1, n2, d2, s1s0, dtheta, tau_bar):
     gt1 = sub(mul(e1, sub(mul(D1, gn1), mul(N1, gd1))), mul(e2, G2))
     gtt0, gtt1 = dot(gt0, t0), dot(gt1, t1)
     g0, g1 = mul(i0, sub(gt0, mul(gtt0, t0))), mul(i1, sub(gt1, mul(gtt1, t1)))
+    return beta, g0, g1, gn0, gn1, gd0, gd1, N1, D1, R1, N2, D2, R2, G2, gt0, gt1, gtt0, gtt1
+
+
+@_jit
+def twisting(t0, t1, i0, i1, c, k, s0, s1, n2, d2, s1s0, dtheta, tau_bar):
+    """``U`` of ``k (tau - tau_bar)^2``
+    (:func:`~shellform.effects.rod_reference_twist.reference_twist_hessian`): the gradient ``g0, g1`` of
+    ``beta`` over the edge vectors, the right vectors of ``g`` (``y``) and of ``(0, x)`` (``z``), the terms
+    ``t0 P^T`` of the block ``00`` and ``01`` and ``t1 Q^T`` of ``10`` and ``11``, the ``d`` of the
+    blocks ``00, 01, 11``, the skew part of ``01`` (``[a]_x``) and ``2 k``."""
+    beta, g0, g1, gn0, gn1, gd0, gd1, N1, D1, R1, N2, D2, R2, G2, gt0, gt1, gtt0, gtt1 = reference_twist(
+        t0, t1, i0, i1, c, s0, s1, n2, d2, s1s0)
     cc = 2.0 * k * (dtheta + beta - tau_bar)
     # b: the gradient of R1 over the edge vectors
     r0, r1 = add(mul(N1, gn0), mul(D1, gd0)), add(mul(N1, gn1), mul(D1, gd1))
@@ -275,6 +294,63 @@ def scatter(data, first, second, hinges, values):
 
 
 @_jit
+def bending_gradient(t0, t1, l0, l1, c, k):
+    """``|kb|^2`` and the gradient ``gb0, gb1`` of ``k |kb|^2`` over the edge vectors
+    (:func:`~shellform.effects.rod_hinge.binormal_energy_derivatives`)."""
+    ichi = 1.0 / (1.0 + c)
+    kb = mul(2.0 * ichi, cross(t0, t1))
+    kk = dot(kb, kb)
+    kw = mul(kk, add(t0, t1))
+    s = 2.0 * k * ichi
+    return kk, mul(s / l0, sub(mul(2.0, cross(t1, kb)), kw)), mul(s / l1, sub(mul(2.0, cross(kb, t0)), kw))
+
+
+@_jit
+def forces_kernel(q, dofs, kb, kt, S0, S1, N2, D2, S1S0, twist, tau_bar, energy, grad, absolute):
+    """The energy of every hinge to ``energy`` (h,) and, unless ``grad`` is empty, its gradient over the stencil
+    DOFs ``dofs`` (h, 11) added to ``grad`` (its absolute values where ``absolute``)."""
+    h = dofs.shape[0]
+    forces = grad.shape[0] > 0
+    bend, tw = kb.shape[0] > 0, kt.shape[0] > 0
+    f = np.empty(11)
+    for i in range(h):
+        d = dofs[i]
+        x0 = (q[d[0]], q[d[1]], q[d[2]])
+        x1 = (q[d[3]], q[d[4]], q[d[5]])
+        x2 = (q[d[6]], q[d[7]], q[d[8]])
+        e0, e1 = sub(x1, x0), sub(x2, x1)
+        l0, l1 = np.sqrt(dot(e0, e0)), np.sqrt(dot(e1, e1))
+        t0 = (e0[0] / l0, e0[1] / l0, e0[2] / l0)
+        t1 = (e1[0] / l1, e1[1] / l1, e1[2] / l1)
+        c = dot(t0, t1)
+        gz0 = gz1 = ZERO
+        e = ct = 0.0
+        if bend:
+            kk, gz0, gz1 = bending_gradient(t0, t1, l0, l1, c, kb[i])
+            e = kb[i] * kk
+        if tw:
+            s0 = (S0[0, i], S0[1, i], S0[2, i])
+            beta, g0, g1 = reference_twist(t0, t1, 1.0 / l0, 1.0 / l1, c, s0, (S1[0, i], S1[1, i], S1[2, i]),
+                                           (N2[0, i], N2[1, i], N2[2, i]), (D2[0, i], D2[1, i], D2[2, i]),
+                                           S1S0[i])[:3]
+            dtau = q[d[10]] - q[d[9]] + twist[i] + beta - tau_bar[i]
+            e += kt[i] * (dtau * dtau)
+            ct = 2.0 * kt[i] * dtau
+            gz0, gz1 = add(gz0, mul(ct, g0)), add(gz1, mul(ct, g1))
+        energy[i] = e
+        if forces:
+            # e^0 = x1 - x0, e^1 = x2 - x1; tau = theta^1 - theta^0 + m
+            for a in range(3):
+                f[a] = -gz0[a]
+                f[3 + a] = gz0[a] - gz1[a]
+                f[6 + a] = gz1[a]
+            f[9] = -ct
+            f[10] = ct
+            for n in range(11):
+                grad[d[n]] += abs(f[n]) if absolute else f[n]
+
+
+@_jit
 def add_stretch_values(q, dofs, EA, L, data, first, second):
     """Add the upper Hessians of the stretching of the rod edges to ``data`` at ``first`` and ``second``
     ((m, 21), :func:`element_major`; the last slot of ``data`` left alone), in the order of
@@ -344,3 +420,23 @@ def add_upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: Twist
     :func:`element_major`: the slots of each hinge's values and of their mirrors; the last slot of ``data``,
     which is left alone, for none)."""
     kernel(*_inputs(t0, t1, l0, l1, bending, twisting), data, first, second)
+
+
+def hinge_forces(q, dofs, bending: np.ndarray | None, twisting: TwistInputs | None, grad: np.ndarray | None = None,
+                 absolute: bool = False) -> np.ndarray:
+    """The energies (h,) of the isotropic bending (stiffness ``k``, (h,) or None) and the twisting (or None) of the
+    hinges with stencil DOFs ``dofs`` (h, 11) at ``q``, their gradient added to ``grad`` (n_dof,) if given (the
+    absolute values of each hinge's gradient where ``absolute``).
+
+    Needs numba (:data:`available`).
+    """
+    none, none3 = np.zeros(0), np.zeros((3, 0))
+    kb = none if bending is None else np.ascontiguousarray(bending, dtype=float)
+    if twisting is None:
+        tw = (none, none3, none3, none3, none3, none, none, none)
+    else:
+        tw = tuple(np.ascontiguousarray(a, dtype=float) for a in twisting[:6] + twisting[7:])
+    energy = np.empty(dofs.shape[0])
+    forces_kernel(np.ascontiguousarray(q, dtype=float), dofs, kb, *tw, energy, none if grad is None else grad,
+                  absolute)
+    return energy

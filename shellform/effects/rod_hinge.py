@@ -32,7 +32,9 @@ stencil once, to the upper triangle of each stencil Hessian
 System's tangents take the same upper values from a kernel compiled per
 hinge (:mod:`.rod_compiled`, :meth:`HingeEffect.upper_scatter`), added
 straight into the tangent's data; the collection stays the reference and the
-form without numba.
+form without numba. The energies and gradients of the same terms are compiled
+as well (:meth:`HingeEffect._compiled_forces`), with the NumPy form
+(``_local``) their reference and the form without numba.
 
 Array layout: the closed-form functions work on *component-major* arrays with
 the hinge index last (vectors ``(3, h)``, Hessians ``(8, 8, h)``), so that every
@@ -450,18 +452,42 @@ class HingeEffect(Effect):
         return t0, t1, l0, l1, q[self._dofs_t[9:]]
 
     def energy(self, q):
-        return float(np.sum(self._local(q, 0)[0]))
+        e = self._compiled_forces(q)
+        return float(np.sum(self._local(q, 0)[0] if e is None else e))
 
     def _stencil_forces(self, q):
         """Gradient of every hinge's energy on its 11 stencil DOFs, shape (11, h)."""
         return stencil_gradient(self._local(q, 1)[1])
 
     def gradient(self, q):
-        return np.bincount(self._dofs_t.ravel(), weights=self._stencil_forces(q).ravel(), minlength=self.n_dof)
+        g = np.zeros(self.n_dof)
+        if self._compiled_forces(q, g) is None:
+            return np.bincount(self._dofs_t.ravel(), weights=self._stencil_forces(q).ravel(), minlength=self.n_dof)
+        return g
 
     def force_magnitudes(self, q):
-        return np.bincount(self._dofs_t.ravel(), weights=np.abs(self._stencil_forces(q)).ravel(),
-                           minlength=self.n_dof)
+        g = np.zeros(self.n_dof)
+        if self._compiled_forces(q, g, absolute=True) is None:
+            return np.bincount(self._dofs_t.ravel(), weights=np.abs(self._stencil_forces(q)).ravel(),
+                               minlength=self.n_dof)
+        return g
+
+    def _compiled_forces(self, q, grad=None, absolute=False) -> np.ndarray | None:
+        """The energy of every hinge (h,), its gradient added to ``grad`` if given (the magnitudes of each hinge's
+        forces where ``absolute``), from the kernel compiled per hinge (:func:`.rod_compiled.hinge_forces`: the
+        kinematics of a hinge once, straight from ``q``, and no arrays between the steps); None where numba is not
+        installed or the effect has no :meth:`kernel_terms`: the NumPy form (:meth:`_local`)."""
+        from . import rod_compiled as compiled
+
+        terms = self.kernel_terms(q) if compiled.available else None
+        if terms is None:
+            return None
+        return compiled.hinge_forces(q, self.stencil, terms.get("bending"), terms.get("twisting"), grad, absolute)
+
+    def kernel_terms(self, q: np.ndarray) -> dict | None:
+        """The terms of :meth:`compiled_terms` but ``"whole"``: what the compiled kernels evaluate for this effect
+        (None, the default: the NumPy form)."""
+        return None
 
     def hessian_pattern(self):
         return self._pattern
