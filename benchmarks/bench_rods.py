@@ -104,7 +104,9 @@ def direct_values(system, q, effect):
     so (compiled kernels), else None."""
     upper = getattr(system, "_upper_free", None)
     direct = getattr(upper, "direct", {})
-    for g, (_, ks, _) in enumerate(system._upper[0] if getattr(system, "_upper", None) is not None else []):
+    summed = getattr(system, "_upper", None)  # an UpperTangent, or (groups, ...) in checkouts before
+    groups = [] if summed is None else summed.groups if hasattr(summed, "groups") else summed[0]
+    for g, (_, ks, _) in enumerate(groups):
         if g in direct and any(system.effects[k] is effect for k in ks):
             data = np.zeros(upper.size)
             effects = [system.effects[k] for k in ks]

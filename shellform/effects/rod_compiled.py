@@ -188,10 +188,21 @@ def twisting(t0, t1, i0, i1, c, k, s0, s1, n2, d2, s1s0, dtheta, tau_bar):
 
 
 @_jit
-def kernel(T0, T1, L0, L1, kb, kt, S0, S1, N2, D2, S1S0, theta, twist, tau_bar, out, first, second):
-    """The upper stencil Hessians: ``out[n h + i]`` the value ``n`` of hinge ``i``, or, when ``first`` is not
-    empty, added to ``out[first[i, n]]`` and ``out[second[i, n]]`` (but for the last slot of ``out``)."""
-    h = L0.shape[0]
+def hinge_geometry(q, d):
+    """The unit tangents and lengths of the two edges of the hinge with stencil DOFs ``d`` at ``q``, as
+    :meth:`~shellform.effects.rod_kinematics.ReferenceFrames.hinge_tangents` computes them."""
+    e0 = (q[d[3]] - q[d[0]], q[d[4]] - q[d[1]], q[d[5]] - q[d[2]])
+    e1 = (q[d[6]] - q[d[3]], q[d[7]] - q[d[4]], q[d[8]] - q[d[5]])
+    l0, l1 = np.sqrt(dot(e0, e0)), np.sqrt(dot(e1, e1))
+    return (e0[0] / l0, e0[1] / l0, e0[2] / l0), (e1[0] / l1, e1[1] / l1, e1[2] / l1), l0, l1
+
+
+@_jit
+def kernel(q, dofs, kb, kt, S0, S1, N2, D2, S1S0, twist, tau_bar, out, first, second):
+    """The upper stencil Hessians of the hinges with stencil DOFs ``dofs`` (h, 11) at ``q``: ``out[n h + i]``
+    the value ``n`` of hinge ``i``, or, when ``first`` is not empty, added to ``out[first[i, n]]`` and
+    ``out[second[i, n]]`` (but for the last slot of ``out``)."""
+    h = dofs.shape[0]
     scatter = first.shape[0] > 0
     v = np.empty(66)
     bend, tw = kb.shape[0] > 0, kt.shape[0] > 0
@@ -202,9 +213,9 @@ def kernel(T0, T1, L0, L1, kb, kt, S0, S1, N2, D2, S1S0, theta, twist, tau_bar, 
     x01 = np.empty((3, 3))
     x12 = np.empty((3, 3))
     for i in range(h):
-        t0 = (T0[0, i], T0[1, i], T0[2, i])
-        t1 = (T1[0, i], T1[1, i], T1[2, i])
-        i0, i1 = 1.0 / L0[i], 1.0 / L1[i]
+        d = dofs[i]
+        t0, t1, l0, l1 = hinge_geometry(q, d)
+        i0, i1 = 1.0 / l0, 1.0 / l1
         c = dot(t0, t1)
         P00 = Q00 = P01 = Q01 = P10 = Q10 = P11 = Q11 = ZERO
         d00 = d01 = d11 = 0.0
@@ -216,7 +227,7 @@ def kernel(T0, T1, L0, L1, kb, kt, S0, S1, N2, D2, S1S0, theta, twist, tau_bar, 
             g0, g1, y0, y1, x, z0, z1, p00, p01, q10, q11, e00, e01, e11, sk, k2 = twisting(
                 t0, t1, i0, i1, c, kt[i], (S0[0, i], S0[1, i], S0[2, i]), (S1[0, i], S1[1, i], S1[2, i]),
                 (N2[0, i], N2[1, i], N2[2, i]), (D2[0, i], D2[1, i], D2[2, i]), S1S0[i],
-                theta[1, i] - theta[0, i] + twist[i], tau_bar[i])
+                q[d[10]] - q[d[9]] + twist[i], tau_bar[i])
             P00, P01, Q10, Q11 = add(P00, p00), add(P01, p01), add(Q10, q10), add(Q11, q11)
             d00, d01, d11 = d00 + e00, d01 + e01, d11 + e11
         block(W00, t0, P00, t1, Q00, g0, y0, ZERO, ZERO, d00)
@@ -315,13 +326,7 @@ def forces_kernel(q, dofs, kb, kt, S0, S1, N2, D2, S1S0, twist, tau_bar, energy,
     f = np.empty(11)
     for i in range(h):
         d = dofs[i]
-        x0 = (q[d[0]], q[d[1]], q[d[2]])
-        x1 = (q[d[3]], q[d[4]], q[d[5]])
-        x2 = (q[d[6]], q[d[7]], q[d[8]])
-        e0, e1 = sub(x1, x0), sub(x2, x1)
-        l0, l1 = np.sqrt(dot(e0, e0)), np.sqrt(dot(e1, e1))
-        t0 = (e0[0] / l0, e0[1] / l0, e0[2] / l0)
-        t1 = (e1[0] / l1, e1[1] / l1, e1[2] / l1)
+        t0, t1, l0, l1 = hinge_geometry(q, d)
         c = dot(t0, t1)
         gz0 = gz1 = ZERO
         e = ct = 0.0
@@ -391,35 +396,36 @@ def element_major(slots: np.ndarray, k: int) -> np.ndarray:
 
 
 _NO_SLOTS = np.zeros((0, 66), dtype=np.int32)
+_NO_GRADIENT = np.zeros(0)
 
 
-def _inputs(t0, t1, l0, l1, bending, twisting) -> tuple:
-    """The kernel's arrays: empty ones for an effect that is not there."""
+def _inputs(bending, twisting) -> tuple:
+    """The kernels' arrays of the effects' terms: empty ones for an effect that is not there."""
     none, none3 = np.zeros(0), np.zeros((3, 0))
     kb = none if bending is None else np.ascontiguousarray(bending, dtype=float)
     if twisting is None:
-        tw = (none, none3, none3, none3, none3, none, np.zeros((2, 0)), none, none)
+        tw = (none, none3, none3, none3, none3, none, none, none)
     else:
         tw = tuple(np.ascontiguousarray(a, dtype=float) for a in twisting)
-    return (*(np.ascontiguousarray(a, dtype=float) for a in (t0, t1, l0, l1)), kb, *tw)
+    return (kb, *tw)
 
 
-def upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: TwistInputs | None, out: np.ndarray) -> None:
+def upper_values(q, dofs, bending: np.ndarray | None, twisting: TwistInputs | None, out: np.ndarray) -> None:
     """Write the upper stencil Hessians (66, h) of the isotropic bending (stiffness ``k``, (h,) or None) and the
-    twisting (or None) of the hinges with tangents ``t0, t1`` (3, h) and lengths ``l0, l1`` (h,) to ``out``,
-    C-contiguous.
+    twisting (or None) of the hinges with stencil DOFs ``dofs`` (h, 11) at ``q`` to ``out``, C-contiguous.
 
     Needs numba (:data:`available`).
     """
-    kernel(*_inputs(t0, t1, l0, l1, bending, twisting), np.reshape(out, -1, copy=False), _NO_SLOTS, _NO_SLOTS)
+    kernel(np.ascontiguousarray(q, dtype=float), dofs, *_inputs(bending, twisting), np.reshape(out, -1, copy=False),
+           _NO_SLOTS, _NO_SLOTS)
 
 
-def add_upper_values(t0, t1, l0, l1, bending: np.ndarray | None, twisting: TwistInputs | None, data: np.ndarray,
+def add_upper_values(q, dofs, bending: np.ndarray | None, twisting: TwistInputs | None, data: np.ndarray,
                      first: np.ndarray, second: np.ndarray) -> None:
     """Add the values of :func:`upper_values` to ``data`` at ``first`` and ``second`` ((h, 66),
     :func:`element_major`: the slots of each hinge's values and of their mirrors; the last slot of ``data``,
     which is left alone, for none)."""
-    kernel(*_inputs(t0, t1, l0, l1, bending, twisting), data, first, second)
+    kernel(np.ascontiguousarray(q, dtype=float), dofs, *_inputs(bending, twisting), data, first, second)
 
 
 def hinge_forces(q, dofs, bending: np.ndarray | None, twisting: TwistInputs | None, grad: np.ndarray | None = None,
@@ -430,13 +436,7 @@ def hinge_forces(q, dofs, bending: np.ndarray | None, twisting: TwistInputs | No
 
     Needs numba (:data:`available`).
     """
-    none, none3 = np.zeros(0), np.zeros((3, 0))
-    kb = none if bending is None else np.ascontiguousarray(bending, dtype=float)
-    if twisting is None:
-        tw = (none, none3, none3, none3, none3, none, none, none)
-    else:
-        tw = tuple(np.ascontiguousarray(a, dtype=float) for a in twisting[:6] + twisting[7:])
     energy = np.empty(dofs.shape[0])
-    forces_kernel(np.ascontiguousarray(q, dtype=float), dofs, kb, *tw, energy, none if grad is None else grad,
-                  absolute)
+    forces_kernel(np.ascontiguousarray(q, dtype=float), dofs, *_inputs(bending, twisting), energy,
+                  _NO_GRADIENT if grad is None else grad, absolute)
     return energy

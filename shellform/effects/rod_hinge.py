@@ -437,7 +437,7 @@ class HingeEffect(Effect):
     def __init__(self, n_dof, frames, stencil, voronoi, stiffness):
         super().__init__(n_dof)
         self.frames = frames
-        self.stencil = np.asarray(stencil, dtype=np.int64)
+        self.stencil = np.ascontiguousarray(stencil, dtype=np.int64)  # read by the compiled kernels hinge by hinge
         self.hinge_edges = frames.hinges
         self._dofs_t = np.ascontiguousarray(self.stencil.T)
         self._pattern = stencil_pattern(self.stencil)
@@ -533,8 +533,7 @@ class HingeEffect(Effect):
             return HingeEffect._hessian(effects, q).upper(out).ravel()
         h = effects[0].stencil.shape[0]
         values = np.empty((66, h)) if out is None else view(out, (66, h))
-        compiled.upper_values(*effects[0].frames.hinge_tangents(q), terms.get("bending"), terms.get("twisting"),
-                              values)
+        compiled.upper_values(q, effects[0].stencil, terms.get("bending"), terms.get("twisting"), values)
         for sub, H in terms["whole"]:
             values[:, sub] += _stencil_upper(H)
         return values.ravel()
@@ -561,8 +560,8 @@ class HingeEffect(Effect):
 
         def add(effects, q: np.ndarray, data: np.ndarray) -> None:
             terms = HingeEffect._compiled_terms(effects, q)
-            compiled.add_upper_values(*effects[0].frames.hinge_tangents(q), terms.get("bending"),
-                                      terms.get("twisting"), data, first, second)
+            compiled.add_upper_values(q, effects[0].stencil, terms.get("bending"), terms.get("twisting"), data,
+                                      first, second)
             for sub, H in terms["whole"]:
                 compiled.scatter(data, first, second, sub, _stencil_upper(H))
 

@@ -37,7 +37,6 @@ class TwistInputs(NamedTuple):
     n2: np.ndarray  # (3, h) s1 x s0
     d2: np.ndarray  # (3, h) s0 + s1
     s1s0: np.ndarray  # (h,) s1 . s0
-    theta: np.ndarray  # (2, h) twist angles of the two edges
     twist: np.ndarray  # (h,) stored reference twist
     tau_bar: np.ndarray  # (h,) natural twist
 

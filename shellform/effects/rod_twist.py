@@ -89,12 +89,11 @@ class RodTwisting(HingeEffect):
         reference_twist_hessian(acc, s0, terms, 2.0 * self.k * dtau, self.k)
 
     def compiled_terms(self, q):
-        return {"twisting": self.kernel_terms(q)["twisting"]._replace(theta=q[self._dofs_t[9:]])}
+        return self.kernel_terms(q)
 
     def kernel_terms(self, q):
-        # the twist angles are read from q by the kernel of the forces, given by compiled_terms to the tangent's
         s0, s1, stored = self._stored()
-        return {"twisting": TwistInputs(self.k, s0, s1, *stored, None, self.frames.twist, self.tau_bar)}
+        return {"twisting": TwistInputs(self.k, s0, s1, *stored, self.frames.twist, self.tau_bar)}
 
     def member_results(self, q):
         tau = self.twist(q)
