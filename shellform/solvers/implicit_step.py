@@ -81,19 +81,20 @@ class Stepper:
                 # round-off floor of the full test, which needs the tangent's diagonal, only widens it)
                 return q, r, it - 1
             J = pb.jacobian(q)
-            eq = pb.test(q, r, R, J)
+            diagonal = J.diagonal()
+            eq = pb.test(q, r, R, diagonal)
             if eq.converged:
                 return q, r, it - 1
             if eq.near_roundoff and it > 1 and norm > 0.1 * previous:
                 return _stalled(eq, q, r, it - 1)
-            taken = self._descend(pb, q, R, J, norm)
+            taken = self._descend(pb, q, R, J, diagonal, norm, phi)
             if eq.near_roundoff and (taken is None or not taken[3] < norm):
                 return _stalled(eq, q, r, it - 1)
             if taken is None:
                 return None, f"Newton iteration {it}: no step decreased the incremental potential", it
             previous = norm
-            q, r, R, norm = taken
-        eq = pb.test(q, r, R, pb.jacobian(q))
+            q, r, R, norm, phi = taken
+        eq = pb.test(q, r, R, pb.jacobian(q).diagonal())
         if eq.converged:
             return q, r, max_iter
         if eq.near_roundoff:
@@ -121,11 +122,13 @@ class Stepper:
             return None
         return q_try, r_try, R_try, n_try, phi_try
 
-    def _descend(self, pb, q, R, J, norm):
-        """The Newton step from ``q``, shifted until it lowers the incremental potential:
-        ``(q, r, R, |R|)`` after it, or None when no shift gives one."""
-        phi0 = pb.merit(q)
-        diag = np.abs(J.diagonal())
+    def _descend(self, pb, q, R, J, diagonal, norm, phi0=None):
+        """The Newton step from ``q`` (``J`` the Jacobian there, ``diagonal`` its diagonal, ``phi0`` the
+        incremental potential if known: that of the point the last step reached), shifted until it lowers
+        the incremental potential: ``(q, r, R, |R|, phi)`` after it, or None when no shift gives one."""
+        if phi0 is None:
+            phi0 = pb.merit(q)
+        diag = np.abs(diagonal)
         base_shift = float(np.mean(diag[diag > 0])) if np.any(diag > 0) else 1.0
         self.kept = None  # freed first: the new factorisation takes over its symbolic analysis
         for shift in [0.0] + [base_shift * 10.0**k for k in range(-8, 4)]:
@@ -209,16 +212,17 @@ class _StepPotential:
             return True  # the member forces could only widen the scale
         return norm <= self.o.rtol * max(self.in_play[0], reactions) + self.o.atol
 
-    def test(self, q, r, R, J) -> EquilibriumCheck:
+    def test(self, q, r, R, diagonal) -> EquilibriumCheck:
+        """The equilibrium test of ``R`` (``diagonal`` that of the Jacobian at ``q``, for the round-off level)."""
         reactions = r[self.system.constrained]
         scale = max(self.in_play[0], float(np.linalg.norm(reactions)))
         scale_max = max(self.in_play[1], _max_abs(reactions))
         return EquilibriumCheck(float(np.linalg.norm(R)), scale, self.o.rtol * scale + self.o.atol,
-                                roundoff_level(J.diagonal(), q), self.o.roundoff_rtol, self.applied,
+                                roundoff_level(diagonal, q), self.o.roundoff_rtol, self.applied,
                                 _max_abs(R), scale_max)
 
     def backtrack(self, q, p, phi0, slope, norm):
-        """Halve the step ``p`` from ``q`` until the potential falls enough: ``(q, r, R, |R|)``, or None."""
+        """Halve the step ``p`` from ``q`` until the potential falls enough: ``(q, r, R, |R|, Phi)``, or None."""
         eps = np.finfo(float).eps
         alpha = 1.0
         for _ in range(30):
@@ -229,9 +233,9 @@ class _StepPotential:
             if np.isfinite(n_try):
                 phi = self.merit(q_try)
                 if phi <= phi0 + 1e-4 * alpha * slope:
-                    return q_try, r_try, R_try, n_try
+                    return q_try, r_try, R_try, n_try, phi
                 # at round-off level Phi cannot rank steps; the residual still can
                 if abs(phi - phi0) <= 1e3 * eps * (abs(phi0) + abs(slope)) and n_try < norm:
-                    return q_try, r_try, R_try, n_try
+                    return q_try, r_try, R_try, n_try, phi
             alpha *= 0.5
         return None
