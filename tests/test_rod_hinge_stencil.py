@@ -193,6 +193,26 @@ def test_compiled_energies_and_gradients_are_the_numpy_ones(monkeypatch, ratio, 
             assert np.all(np.abs(v - v0) <= 1e-13 * np.abs(v0).max()), e.name
 
 
+def test_compiled_stretching_is_the_bar(monkeypatch):
+    """The compiled energy, gradient and force magnitudes of rod stretching against the bar's NumPy form."""
+    pytest.importorskip("numba")
+    from shellform.effects import rod_compiled
+    from shellform.effects.rod_stretch import RodStretching
+
+    rng = np.random.default_rng(4)
+    s, net = network_from(random_lines(rng, (4, 7, 9)), closed=(2,), seed=2)
+    q = s.reference_state() + 0.2 * rng.normal(size=s.n_dof)
+    stretch = next(e for e in net.effects() if isinstance(e, RodStretching))
+    assert stretch._compiled(q) is not None
+    got = stretch.energy(q), stretch.gradient(q), stretch.force_magnitudes(q)
+    monkeypatch.setattr(rod_compiled, "available", False)
+    assert stretch._compiled(q) is None
+    expected = stretch.energy(q), stretch.gradient(q), stretch.force_magnitudes(q)
+    assert got[0] == pytest.approx(expected[0], rel=1e-13)
+    for v, v0 in zip(got[1:], expected[1:]):
+        assert np.all(np.abs(v - v0) <= 1e-13 * np.abs(v0).max())
+
+
 @pytest.mark.parametrize("ratio", [None, "random"])
 def test_tangents_with_and_without_the_compiled_hinges(monkeypatch, ratio):
     """The System's tangents with the hinge values added straight into the data equal those summed by the 0/1

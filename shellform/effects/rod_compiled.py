@@ -388,6 +388,31 @@ def add_stretch_values(q, dofs, EA, L, data, first, second):
                 data[g] += v[n]
 
 
+@_jit
+def stretch_forces(q, dofs, EA, L, energy, grad, absolute):
+    """Twice the stretching energy ``k (l - L)^2`` (``k = EA / L``) of every rod edge with end DOFs ``dofs`` (m, 6)
+    to ``energy`` (m,) and, unless ``grad`` is empty, its gradient added to ``grad`` (the absolute values where
+    ``absolute``), in the order of operations of :class:`~shellform.effects.axial.AxialBar`."""
+    forces = grad.shape[0] > 0
+    for j in range(L.shape[0]):
+        e = dofs[j]
+        d = (q[e[3]] - q[e[0]], q[e[4]] - q[e[1]], q[e[5]] - q[e[2]])
+        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        k = EA[j] / L[j]
+        stretch = length - L[j]
+        energy[j] = k * (stretch * stretch)
+        if forces:
+            s = k * stretch / length
+            for a in range(3):
+                f = s * d[a]  # the pull of the edge on its first node
+                if absolute:
+                    grad[e[a]] += abs(f)
+                    grad[e[3 + a]] += abs(f)
+                else:
+                    grad[e[a]] -= f
+                    grad[e[3 + a]] += f
+
+
 def element_major(slots: np.ndarray, k: int) -> np.ndarray:
     """Slots of ``k`` values per element, value-major ``(k m,)`` as the patterns list them, as the kernels read
     them: element-major ``(m, k)``, int32 unless a slot does not fit."""
@@ -439,4 +464,19 @@ def hinge_forces(q, dofs, bending: np.ndarray | None, twisting: TwistInputs | No
     energy = np.empty(dofs.shape[0])
     forces_kernel(np.ascontiguousarray(q, dtype=float), dofs, *_inputs(bending, twisting), energy,
                   _NO_GRADIENT if grad is None else grad, absolute)
+    return energy
+
+
+def stretch_energies(q, dofs, EA, L, grad: np.ndarray | None = None, absolute: bool = False) -> np.ndarray:
+    """Twice the stretching energy of every rod edge (m,) with end DOFs ``dofs`` (m, 6), axial stiffness ``EA``
+    and rest length ``L`` (m,) at ``q``, its gradient added to ``grad`` (n_dof,) if given (the magnitudes of the
+    end forces where ``absolute``).
+
+    Needs numba (:data:`available`).
+    """
+    L = np.ascontiguousarray(L, dtype=float)
+    EA = np.ascontiguousarray(np.broadcast_to(np.asarray(EA, dtype=float), L.shape))
+    energy = np.empty(L.shape[0])
+    stretch_forces(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(dofs, dtype=np.int64), EA, L, energy,
+                   _NO_GRADIENT if grad is None else grad, absolute)
     return energy

@@ -83,6 +83,30 @@ class RodStretching(AxialBar):
         out[15:21] = out[0:6]
         return out.ravel()
 
+    def _compiled(self, q, grad=None, absolute=False) -> np.ndarray | None:
+        """Twice the energy of every edge (m,), its gradient added to ``grad``, compiled
+        (:func:`.rod_compiled.stretch_energies`: on the 936 edges of the n = 5 hemisphere 12 us a gradient against
+        70 us, 11 us an energy against 36 us); None without numba or for another force law: the NumPy form of
+        the bar."""
+        from . import rod_compiled as compiled
+
+        if not compiled.available or type(self)._force is not AxialBar._force \
+                or type(self)._active is not AxialBar._active:
+            return None
+        return compiled.stretch_energies(q, self.dofs, self.EA, self.L, grad, absolute)
+
+    def energy(self, q):
+        e = self._compiled(q)
+        return super().energy(q) if e is None else 0.5 * float(np.sum(e))
+
+    def gradient(self, q):
+        g = np.zeros(self.n_dof)
+        return super().gradient(q) if self._compiled(q, g) is None else g
+
+    def force_magnitudes(self, q):
+        g = np.zeros(self.n_dof)
+        return super().force_magnitudes(q) if self._compiled(q, g, absolute=True) is None else g
+
     @classmethod
     def upper_scatter(cls, effects, first, second):
         """A function ``add(effects, q, data)`` that adds the upper Hessian values to the data of a sparse matrix
