@@ -193,6 +193,38 @@ def test_compiled_energies_and_gradients_are_the_numpy_ones(monkeypatch, ratio, 
             assert np.all(np.abs(v - v0) <= 1e-13 * np.abs(v0).max()), e.name
 
 
+def test_energies_of_the_last_gradient_pass_serve_only_the_same_state():
+    """The energy at the point of the last compiled gradient is that pass's; another q, a new stored state or
+    another stiffness is evaluated afresh."""
+    import copy
+
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(3)
+    s, net = network_from(random_lines(rng, (5, 8)), natural=["rest", "straight"], twist=[0.2, 0.0], seed=4)
+    q = s.reference_state() + 0.1 * rng.normal(size=s.n_dof)
+    for e in hinge_effects(net):
+        fresh = e.energy(q)
+        e.gradient(q)
+        assert e.energy(q) == fresh
+        assert e.energy(q.copy()) == fresh
+        q2 = q.copy()
+        q2[3] += 0.1
+        assert e.energy(q2) != fresh
+        e.gradient(q)
+        soft = copy.copy(e)
+        soft.k = 0.5 * e.k
+        assert soft.energy(q) == pytest.approx(0.5 * fresh, rel=1e-14)
+    q1 = q + 0.1 * rng.normal(size=s.n_dof)
+    twist = hinge_effects(net)[1]
+    twist.gradient(q)
+    before = twist.energy(q)
+    net.frames.update(q1)  # the energy at q changes with the stored frames (a new chart of the twist)
+    changed = twist.energy(q)
+    twist._last_forces = None
+    assert changed == twist.energy(q)
+    assert changed != before
+
+
 def test_compiled_stretching_is_the_bar(monkeypatch):
     """The compiled energy, gradient and force magnitudes of rod stretching against the bar's NumPy form."""
     pytest.importorskip("numba")

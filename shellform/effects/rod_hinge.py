@@ -443,6 +443,7 @@ class HingeEffect(Effect):
         self._pattern = stencil_pattern(self.stencil)
         self._upper_pattern = None
         self._scratch = {}  # HingeHessian arrays reused between evaluations, by number of slots
+        self._last_forces = None  # (q, the terms' arrays, energies) of the last compiled gradient
         self.voronoi = np.asarray(voronoi, dtype=float)
         self.k = np.asarray(stiffness, dtype=float) / (2.0 * self.voronoi)
 
@@ -482,7 +483,18 @@ class HingeEffect(Effect):
         terms = self.kernel_terms(q) if compiled.available else None
         if terms is None:
             return None
-        return compiled.hinge_forces(q, self.stencil, terms.get("bending"), terms.get("twisting"), grad, absolute)
+        # a solver asks for the energy where it has just asked for the gradient (a line search's trial
+        # point): the energies of that pass serve, while the terms' arrays are the same objects (the
+        # effects and their frames replace them, never change them in place) and q is equal
+        key = tuple(a for t in terms.values() for a in (t if isinstance(t, tuple) else (t,)))
+        last = getattr(self, "_last_forces", None)
+        if grad is None and last is not None and len(last[1]) == len(key) \
+                and all(a is b for a, b in zip(last[1], key)) and np.array_equal(last[0], q):
+            return last[2].copy()
+        e = compiled.hinge_forces(q, self.stencil, terms.get("bending"), terms.get("twisting"), grad, absolute)
+        if grad is not None:
+            self._last_forces = (np.array(q, dtype=float), key, e.copy())
+        return e
 
     def kernel_terms(self, q: np.ndarray) -> dict | None:
         """The terms of :meth:`compiled_terms` but ``"whole"``: what the compiled kernels evaluate for this effect
