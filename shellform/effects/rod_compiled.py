@@ -49,13 +49,18 @@ available = njit is not None
 
 def _jit(f):
     """Compiled on first call and cached on disk (about 3 s once, then 0.2-0.3 s per process to load); without
-    numba the function stays plain Python and is not called."""
+    numba the function stays plain Python and is not called.
+
+    ``error_model = "numpy"``: a division by zero gives inf or nan, as in the NumPy form, for the checks of
+    non-finite forces to name (numba's default raises ZeroDivisionError from inside the kernel: a degenerate
+    rod, a section of 3e-11 m, then ended a run with a traceback).
+    """
     if njit is None:
         return f
     try:
-        return njit(cache=True, nogil=True)(f)
+        return njit(cache=True, nogil=True, error_model="numpy")(f)
     except RuntimeError:  # no writable place for the cache: compiled in every process
-        return njit(nogil=True)(f)
+        return njit(nogil=True, error_model="numpy")(f)
 
 
 @_jit
