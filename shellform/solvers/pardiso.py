@@ -158,10 +158,30 @@ class PardisoError(RuntimeError):
     """PARDISO returned an error code."""
 
 
-#: freed PARDISO solvers kept by pattern with their analysis (each also holds its factor's memory:
-#: fewer than QDLDL's)
-_POOL = _SymbolicPool()
-_POOL.size = 2
+class _Pool(_SymbolicPool):
+    """Freed PARDISO solvers kept by pattern with their analysis (each also holds its factor's memory:
+    fewer than QDLDL's).
+
+    A solver whose memory was released is never handed out: when the
+    garbage collector frees a reference cycle holding an LDLFactor and its
+    solver, it runs both finalisers in either order, the factor's giving the
+    solver back to the pool and the solver's releasing its memory.
+    """
+
+    size = 2
+
+    def give(self, U, solver) -> None:
+        if solver._live:
+            super().give(U, solver)
+
+    def take(self, U):
+        # the collector may also finalise a solver after its factor gave it back: it is dropped here
+        while (solver := super().take(U)) is not None and not solver._live:
+            pass
+        return solver
+
+
+_POOL = _Pool()
 
 
 class PardisoSolver:
@@ -196,14 +216,15 @@ class PardisoSolver:
         self._pt = np.zeros(64, dtype=np.int64)
         self.iparm = _iparm()
         self._perm = np.zeros(n, dtype=np.int32)
-        self._live = False
+        self._live = True  # PARDISO's memory is released from here on (phase -1), whatever happens
         self.d = np.zeros(0)
         self._call(11)  # ordering and symbolic factorisation
-        self._live = True
         self.factorize()
 
     # -- PARDISO calls ------------------------------------------------------------------------
     def _call(self, phase: int, b: np.ndarray | None = None) -> np.ndarray | None:
+        if not self._live:
+            raise PardisoError("this PARDISO instance's memory was released")
         i32 = ctypes.c_int32
         p32 = ctypes.POINTER(i32)
         nrhs = 1 if b is None or b.ndim == 1 else b.shape[1]
@@ -215,8 +236,8 @@ class PardisoSolver:
         err = i32(0)
         previous = self.lib.MKL_Set_Num_Threads_Local(THREADS)
         try:
-            self.lib.pardiso(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(i32(1)), ctypes.byref(i32(1)),
-                             ctypes.byref(i32(_MTYPE)), ctypes.byref(i32(phase)), ctypes.byref(i32(self.n)),
+            self.lib.pardiso(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(i32(1)),
+                             ctypes.byref(i32(1)), ctypes.byref(i32(_MTYPE)), ctypes.byref(i32(phase)), ctypes.byref(i32(self.n)),
                              self._a.ctypes.data_as(ctypes.c_void_p), self._ia.ctypes.data_as(p32),
                              self._ja.ctypes.data_as(p32), self._perm.ctypes.data_as(p32), ctypes.byref(i32(nrhs)),
                              self.iparm.ctypes.data_as(p32), ctypes.byref(i32(0)), b.ctypes.data_as(ctypes.c_void_p),
@@ -276,11 +297,12 @@ class PardisoSolver:
     def release(self) -> None:
         """Free PARDISO's memory of this instance (phase -1)."""
         if self._live:
-            self._live = False
             try:
                 self._call(-1)
             except PardisoError:
                 pass
+            finally:
+                self._live = False
 
     def __del__(self):
         try:
@@ -299,9 +321,11 @@ def factor(U: sp.csc_matrix, previous=None) -> PardisoSolver | None:
     fails; the solver then goes back to the pool with its analysis, for the
     next matrix of the pattern.
     """
+    if not np.all(np.isfinite(U.data)):
+        return None  # QDLDL's factorisation reports it
     solver = None
     held = getattr(previous, "_solver", None)
-    if isinstance(held, PardisoSolver) and held.n == U.shape[0] and np.array_equal(
+    if isinstance(held, PardisoSolver) and held._live and held.n == U.shape[0] and np.array_equal(
             previous._U.indptr, U.indptr) and np.array_equal(previous._U.indices, U.indices):
         solver, previous._solver = held, None
     if solver is None:
