@@ -2,23 +2,31 @@
 for large matrices.
 
 QDLDL factorises column by column (simplicial); PARDISO eliminates dense
-supernodes with BLAS kernels in a nested-dissection (METIS) ordering. On the
-dense hemispheres' indentation tangents one numeric refactorisation took
+supernodes with BLAS kernels in a nested-dissection (METIS) ordering. One
+numeric refactorisation with the analysis kept, one thread each
+(``benchmarks/results/bench_ldl_backend.md``, n = 39 from
+``bench_inertia_factor.md``):
 
-====  =========  ==========  ===========
-n     unknowns   QDLDL [s]   PARDISO [s]
-====  =========  ==========  ===========
-19    12,924     0.031       0.010
-39    26,036     1.75        0.045
-49    27,280     5.06        0.039
-====  =========  ==========  ===========
+=====================  =========  ==========  ===========
+model                  unknowns   QDLDL [ms]  PARDISO [ms]
+=====================  =========  ==========  ===========
+hemisphere n = 5       3,688      0.8         1.4
+hemisphere n = 11      7,628      3.0         3.6
+hemisphere n = 19      12,924     25.4        8.1
+hemisphere n = 29      19,512     208         17.5
+hemisphere n = 39      26,036     1,751       45
+rope net 40 x 40       4,332      5.8         3.2
+rope net 80 x 80       18,252     49.5        18.7
+=====================  =========  ==========  ===========
 
-(``benchmarks/results/bench_inertia_factor.md``, one thread each; the
-crossover with QDLDL is measured in ``benchmarks/results/bench_ldl_backend.md``).
+hence :data:`MIN_SIZE`. The whole mode-I indentation curve of the n = 19
+hemisphere took 16-18 s against 25 s with QDLDL alone, with the same
+thresholds, steps and Newton iterations; n = 39 took 122 s.
+
 PARDISO is an optional dependency (``pip install shellform[pardiso]``:
 MKL's wheels are about 200 MB and x86 only). Which backend an
-:class:`LDLFactor` uses is chosen by the environment variable
-``SHELLFORM_LDL``:
+:class:`LDLFactor` uses is its ``backend`` argument or, by default, the
+environment variable ``SHELLFORM_LDL``:
 
 * ``auto`` (default): PARDISO from :data:`MIN_SIZE` unknowns up when
   pypardiso can be imported, QDLDL otherwise;
