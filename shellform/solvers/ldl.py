@@ -81,6 +81,10 @@ class LDLFactor:
         Largest accepted backward error of a solve (None: no check).
     refine : int
         Most steps of iterative refinement per solve.
+    backend : {"auto", "qdldl", "pardiso"}, optional
+        Who factorises: QDLDL, or MKL PARDISO (supernodal, 1x1 pivoting,
+        where its inertia can be trusted; see :mod:`shellform.solvers.pardiso`).
+        None: the ``SHELLFORM_LDL`` environment variable, ``auto`` when unset.
 
     Raises
     ------
@@ -90,8 +94,11 @@ class LDLFactor:
 
     method = "ldl"
 
-    def __init__(self, A, previous: LDLFactor | None = None, check: float | None = 1e-9, refine: int = 3):
+    def __init__(self, A, previous: LDLFactor | None = None, check: float | None = 1e-9, refine: int = 3,
+                 backend: str | None = None):
         import qdldl
+
+        from . import pardiso
 
         U = upper_csc(A)
         self.A = sp.csr_matrix(A)
@@ -102,6 +109,15 @@ class LDLFactor:
         if self.scale == 0.0:
             self.scale = float(np.max(np.abs(U.data))) if U.nnz else 1.0
         self._solver = None
+        self._norm_inf = None
+        self.backend = "qdldl"
+        if pardiso.use_pardiso(self.n, backend):
+            solver = pardiso.factor(U, previous)
+            if solver is not None:  # its inertia is trusted; otherwise QDLDL factorises this matrix
+                self._U, self._solver, self.d, self.backend = U, solver, solver.d, "pardiso"
+                return
+        elif isinstance(getattr(previous, "_solver", None), pardiso.PardisoSolver):
+            previous = None  # QDLDL cannot take over PARDISO's analysis
         pooled = None
         if previous is None or previous._solver is None:
             pooled = _POOL.take(U)
@@ -136,14 +152,13 @@ class LDLFactor:
             raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
         self._solver = solver
         self.d = d
-        self._norm_inf = None
 
     def __del__(self):
         # the solver's ordering and symbolic factorisation serve the next factor of this pattern
         solver = getattr(self, "_solver", None)
         if solver is not None and _POOL is not None:
             self._solver = None
-            _POOL.give(self._U, solver)
+            getattr(solver, "pool", _POOL).give(self._U, solver)
 
     # -- inertia --------------------------------------------------------------------
     @property
@@ -213,6 +228,9 @@ class LDLFactor:
             if eta <= 1e-12 or k == steps:
                 break
             x = x + self._raw_solve(r)
+        failed = not np.all(np.isfinite(x)) or (self.check is not None and eta > self.check)
+        if failed and self._to_qdldl():
+            return self.solve(b, refine)
         if not np.all(np.isfinite(x)):
             raise SingularMatrixError("LDL^T solve produced non-finite values (matrix numerically singular)")
         if self.check is not None and eta > self.check:
@@ -234,4 +252,24 @@ class LDLFactor:
 
     def trustworthy(self, pivot_tol: float = 1e-10, backward_tol: float = 1e-11) -> bool:
         """Whether the pivot signs give the inertia: no tiny pivot, small backward error."""
-        return self.min_pivot_ratio > pivot_tol and self.backward_error() < backward_tol
+        if self.min_pivot_ratio <= pivot_tol:
+            return False  # an eigenvalue may be near zero: the caller's shifted factorisations decide
+        if self.backward_error() < backward_tol:
+            return True
+        try:  # a PARDISO factor's solve was not accurate enough: QDLDL's may be
+            return self._to_qdldl() and self.trustworthy(pivot_tol, backward_tol)
+        except SingularMatrixError:
+            return False
+
+    def _to_qdldl(self) -> bool:
+        """Refactorise a PARDISO factor's matrix with QDLDL (False: it is QDLDL's already).
+
+        Raises SingularMatrixError where a QDLDL factorisation would.
+        """
+        if self.backend != "pardiso":
+            return False
+        q = LDLFactor(self.A, check=self.check, refine=self.refine, backend="qdldl")
+        # q is freed with the PARDISO solver, which goes back to its pool for the next matrix of the pattern
+        self._solver, q._solver = q._solver, self._solver
+        self.d, self.backend = q.d, "qdldl"
+        return True

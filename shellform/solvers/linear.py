@@ -8,7 +8,8 @@
   over. Measured on a 148k-DOF rope-net tangent: QDLDL 6.6 s, SuperLU 150 s
   (``benchmarks/bench_assembly.py``). The LDL^T factor (:class:`LDLFactor`,
   the same one :mod:`shellform.solvers.stability` and the continuation use)
-  also gives the inertia (number of negative eigenvalues, Sylvester's law).
+  also gives the inertia (number of negative eigenvalues, Sylvester's law); with
+  pypardiso installed, large ones are MKL PARDISO's (:mod:`shellform.solvers.pardiso`).
 * ``"ldl"``, ``"lu"``: one of the two, without fallback.
 * ``"cholesky"``: supernodal Cholesky (CHOLMOD) for symmetric positive
   definite matrices, several times faster than LDL^T on large ones
