@@ -21,7 +21,7 @@ rope net 80 x 80       18,252     49.5        18.7
 
 hence :data:`MIN_SIZE`. The whole mode-I indentation curve of the n = 19
 hemisphere took 16-18 s against 25 s with QDLDL alone, with the same
-thresholds, steps and Newton iterations; n = 39 took 122 s.
+thresholds, steps and Newton iterations; n = 39 took 122 s against 948 s.
 
 PARDISO is an optional dependency (``pip install shellform[pardiso]``:
 MKL's wheels are about 200 MB and x86 only). Which backend an
