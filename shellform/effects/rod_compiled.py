@@ -1,14 +1,14 @@
 """The upper Hessians of rod hinges (isotropic bending and twisting) and rod edges (stretching), and the hinges'
 energies and gradients, compiled.
 
-The same closed-form terms as :class:`~shellform.effects.rod_hinge.HingeHessian`
+The same closed-form terms as :class:`~shellform.effects.rod_stencil.HingeHessian`
 (:func:`~shellform.effects.rod_hinge.binormal_energy_hessian` and
 :func:`~shellform.effects.rod_reference_twist.reference_twist_hessian`), each
 written out for one hinge at a time: the blocks of ``U`` over the edge vectors
 (the Hessian being ``U + U^T``), each a sum of outer products
 ``t0 P^T + t1 Q^T + ...`` of which bending and twisting add up the right
 vectors first, then the 66 entries
-:data:`~shellform.effects.rod_hinge.UPPER_PAIRS` of the stencil Hessian.
+:data:`~shellform.effects.rod_stencil.UPPER_PAIRS` of the stencil Hessian.
 Over 10^3 - 10^4 hinges the NumPy form spends its time in some 150 array
 operations and their temporaries (1.5 - 2.5 us each whatever the size); one
 pass over the hinges takes about 0.2 us per hinge

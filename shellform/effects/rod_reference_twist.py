@@ -2,7 +2,7 @@
 
 ``beta = m(q) - m_stored`` from the spherical-triangle (solid angle) expressions of
 :mod:`shellform.effects.rod_kinematics`, with its gradient over ``(e^0, e^1)`` and its
-Hessian added to a :class:`~shellform.effects.rod_hinge.HingeHessian` as rank-one and
+Hessian added to a :class:`~shellform.effects.rod_stencil.HingeHessian` as rank-one and
 cross-product terms. Component-major arrays, the hinge index last.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 from .rod_vectors import cross, inner, view
 
 if TYPE_CHECKING:  # the collector the Hessian terms are added to; it imports this module
-    from .rod_hinge import HingeHessian
+    from .rod_stencil import HingeHessian
 
 
 class TwistTerms(NamedTuple):
