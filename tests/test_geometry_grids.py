@@ -149,7 +149,7 @@ def test_gmsh_is_released_after_errors_and_input_is_checked():
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the signal mask from /proc")
 @pytest.mark.parametrize("where", ["main", "thread"])
 def test_meshing_leaves_a_broken_pipe_an_error_not_the_end_of_the_process(where):
-    """gmsh's first start sets SIGPIPE back to the default that kills the process; the session undoes it.
+    """gmsh's first start sets SIGPIPE back to the default that kills the process; gmsh_session undoes it.
 
     Only the first start in a process does it, so the check runs in a fresh interpreter.
     """
