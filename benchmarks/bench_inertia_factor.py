@@ -17,25 +17,16 @@ x86-only); install ``pypardiso`` beside shellform to get its column.
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
 
 import numpy as np
 import scipy.sparse as sp
 
+from bench_ldl_backend import median_time
 from shellform.gridshell.hemisphere import HemisphereSpec, build_hemisphere, prestress_on_net
 from shellform.gridshell.indentation import indentation_system
 from shellform.solvers.cholesky import CholeskyFactor
 from shellform.solvers.factor_base import upper_csc
-
-
-def median_time(f, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def pardiso_times(K, repeat):

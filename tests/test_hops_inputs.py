@@ -18,18 +18,8 @@ rhino3dm = pytest.importorskip("rhino3dm")
 import meshio  # noqa: E402
 
 import shellform as sf  # noqa: E402
-from shellform.hops import start  # noqa: E402
 from shellform.scene import parse_scene  # noqa: E402
 from test_hops_server import lines_of, outputs, post, rectangle, request  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def server():
-    srv, thread = start(port=0)
-    yield srv
-    srv.shutdown()
-    srv.server_close()
-    thread.join(5)
 
 
 def _error(server, body):
@@ -147,13 +137,19 @@ def dome_grid(n: int = 5, span: float = 4.0, rise: float = 0.8) -> np.ndarray:
     return np.stack([x, y, z], axis=2)
 
 
+def grid_lines(grid: np.ndarray) -> list:
+    """The polylines along both families of a grid's lines (n, n, 3)."""
+    n = len(grid)
+    return [polyline_curve(grid[i, :]) for i in range(n)] + [polyline_curve(grid[:, j]) for j in range(n)]
+
+
 def test_gridshell_of_lines_matches_the_rod_scene(server):
     """Polylines along both families of a dome's grid lines: rods sharing their crossing nodes, pinned at their
     ends, under their weight and node masses, traced to the first critical point as the rod scene of the same
     nodes and [[rods.lines]] is."""
     n = 5
     grid = dome_grid(n)
-    curves = [polyline_curve(grid[i, :]) for i in range(n)] + [polyline_curve(grid[:, j]) for j in range(n)]
+    curves = grid_lines(grid)
     radius, density, node_mass, mass_per_length = 0.02, 7850.0, 50.0, 3.0
     status, text = post(server, request("Gridshell", Lines=curves, Radius=radius, Density=density,
                                         NodeMass=node_mass, MassPerLength=mass_per_length, RestShape="found"))
@@ -205,7 +201,7 @@ def test_a_smooth_curve_is_divided_and_joined_where_points_meet():
 
 def test_bad_lines_name_the_input_and_the_problem(server):
     grid = dome_grid(4)
-    curves = [polyline_curve(grid[i, :]) for i in range(4)] + [polyline_curve(grid[:, j]) for j in range(4)]
+    curves = grid_lines(grid)
     point = rhino3dm.Point3d
     assert _error(server, request("Gridshell", Lines=curves[:1])).startswith(
         "Lines: got 1 curve; a gridshell needs at least two rods")
@@ -246,7 +242,7 @@ def test_gridshell_of_timber_laths_matches_the_rod_scene(server):
     MassPerLength spread over the rectangle's area."""
     n = 5
     grid = dome_grid(n)
-    curves = [polyline_curve(grid[i, :]) for i in range(n)] + [polyline_curve(grid[:, j]) for j in range(n)]
+    curves = grid_lines(grid)
     depth, width, density, mass_per_length = 0.03, 0.05, 500.0, 2.0
     status, text = post(server, request("Gridshell", Lines=curves, Section="rectangle", Depth=depth, Width=width,
                                         E=10.0e9, Density=density, NodeMass=20.0, MassPerLength=mass_per_length,
@@ -279,6 +275,6 @@ def test_gridshell_of_timber_laths_matches_the_rod_scene(server):
 ])
 def test_bad_section_inputs_name_the_input(server, inputs, name, message):
     grid = dome_grid(3)
-    curves = [polyline_curve(grid[i, :]) for i in range(3)] + [polyline_curve(grid[:, j]) for j in range(3)]
+    curves = grid_lines(grid)
     error = _error(server, request("Gridshell", Lines=curves, **inputs))
     assert error.startswith(f"{name}:") and message in error, error

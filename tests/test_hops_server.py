@@ -26,15 +26,6 @@ from shellform.hops.protocol import encode_input  # noqa: E402
 from shellform.scene import parse_scene  # noqa: E402
 
 
-@pytest.fixture(scope="module")
-def server():
-    srv, thread = start(port=0)
-    yield srv
-    srv.shutdown()
-    srv.server_close()
-    thread.join(5)
-
-
 def get(server, path):
     try:
         with urllib.request.urlopen(server.url + path, timeout=60) as r:
