@@ -182,7 +182,12 @@ def inertia(
             factor = LDLFactor(A)
         except SingularMatrixError:
             factor = None
-    ratio = factor.min_pivot_ratio if factor is not None else float("nan")
+    ratio = float("nan")
+    if factor is not None:
+        try:
+            ratio = factor.min_pivot_ratio
+        except SingularMatrixError:  # a zero pivot, read only now: as if the factorisation had failed
+            factor = None
     if factor is not None and factor.trustworthy(pivot_tol):
         m = factor.n_negative_pivots
         return Inertia(m, 0, n - m, m, "ldl", ratio, ztol)

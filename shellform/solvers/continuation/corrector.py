@@ -57,6 +57,7 @@ def correct(tr, u0, p0, du, dp, ds):
     """Newton on ``G = 0`` plus the arc-length constraint from the predictor ``(du, dp)``."""
     o = tr.o
     max_iter = o.max_iterations
+    tr.pb.new_point()
     complex_roots = 0
     norm0 = previous = None
     for it in range(max_iter + 1):
@@ -162,6 +163,7 @@ def land(tr, u, p, lo_b, hi_b) -> StepPoint | None:
     if not 0.0 <= w <= 1.0:
         return None
     u = tr.u + w * (u - tr.u)
+    tr.pb.new_point()
     previous = None
     for it in range(tr.o.max_iterations + 1):
         R, r, q = tr.pb.residual(u, pb)

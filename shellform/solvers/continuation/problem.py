@@ -69,6 +69,8 @@ class Problem:
         #: called before each factorisation: whether the tangent is expected positive definite
         #: (the tracer says so while the last point counted no negative eigenvalue)
         self.definite_hint = lambda: False
+        #: a Cholesky factorisation failed since the last :meth:`new_point`
+        self._cholesky_failed = False
         self._block = None
         if control == "load":
             if not np.any(self.f_ref != 0.0):
@@ -140,17 +142,20 @@ class Problem:
         (on the apex-loaded lattice domes 2.1 times at 3,711 unknowns, 5.1 at
         16,131 and 7.2 at 37,209; as fast from 759 up to the hemisphere's
         7,628), and where it succeeds the tangent has no negative eigenvalue.
-        Where it fails, LDL^T gives the inertia.
+        Where it fails, LDL^T gives the inertia, and the tangents of the same
+        point's remaining corrector iterations go to LDL^T at once: past a
+        limit point the attempt (half a successful Cholesky's time) would fail
+        at each of them.
         """
         t0 = time.perf_counter()
         try:
-            if self.linear_solver == "ldl" and self.definite_hint():
+            if self.linear_solver == "ldl" and not self._cholesky_failed and self.definite_hint():
                 try:
                     F = CholeskyFactor(K, previous=self._chol_prev, stored=True)
                     self._chol_prev = F
                     return F
                 except SingularMatrixError:
-                    pass  # the analysis stays with the previous factor for the next attempt
+                    self._cholesky_failed = True  # the analysis stays with the previous factor for the next attempt
             if self.linear_solver == "ldl":
                 try:
                     F = LDLFactor(K, previous=self._ldl_prev)
@@ -164,6 +169,10 @@ class Problem:
                 return None
         finally:
             self.timer.add("linear_algebra", t0)
+
+    def new_point(self) -> None:
+        """A new point is sought (a step, a trial point of an event's location): Cholesky may be tried again."""
+        self._cholesky_failed = False
 
     def solve(self, F, b):
         t0 = time.perf_counter()

@@ -17,7 +17,7 @@ import numpy as np
 
 from ...errors import MechanismError, ModelError
 from ..equilibrium import roundoff_level
-from ..linear import LDLFactor, SingularMatrixError
+from ..linear import CholeskyFactor, LDLFactor, SingularMatrixError
 from ..mechanism import describe_soft_modes
 from ..newton import solve_static
 from ..step_bounds import linearised_critical_increment
@@ -128,13 +128,19 @@ def _first_arc_length(o: ContinuationOptions, p0: float, direction: int, crit: f
 def critical_increment(tr, u, p, K, F, du_dp, direction, q):
     """Linearised parameter increment to the nearest critical point ahead (None: none or unknown).
 
-    Only from a start whose factorisation ``K = L D L^T`` has a positive
-    ``D`` (``K`` positive definite; see
+    Only from a start whose tangent is positive definite: factorised by
+    Cholesky, or ``K = L D L^T`` with a positive ``D`` (see
     :func:`~shellform.solvers.step_bounds.linearised_critical_increment`).
     An estimate, not a stability check: a start it cannot judge goes
     without one.
     """
-    if not isinstance(F, LDLFactor) or not np.all(F.d > 0.0):
+    if isinstance(F, LDLFactor):
+        try:
+            if not np.all(F.d > 0.0):
+                return None
+        except SingularMatrixError:
+            return None
+    elif not isinstance(F, CholeskyFactor):
         return None
     t0 = time.perf_counter()
     crit = linearised_critical_increment(lambda uu, pp: tr.pb.jacobian(uu, pp), u, p, K, F, du_dp,

@@ -51,8 +51,9 @@ class Tracer:
         self.timer = Timer()
         self.t_created = time.perf_counter()
         self.pb = Problem(system, control, o.fixed_lam, o.fixed_mu, self.timer, o.linear_solver)
-        # Cholesky first while the path is stable: where it succeeds there is no negative eigenvalue
-        self.pb.definite_hint = lambda: (getattr(self, "n_neg", -1) == 0 if self.o.stability
+        # Cholesky first while the path is stable (and at the start, before anything is counted):
+        # where it succeeds there is no negative eigenvalue
+        self.pb.definite_hint = lambda: (getattr(self, "n_neg", 0) == 0 if self.o.stability
                                          else self.o.definite_branch)
         #: ``(u, K, g, F)`` of the last point analysed: what follows it (event location) reuses them
         self.last_linearisation = None
