@@ -132,8 +132,12 @@ def critical_increment(tr, u, p, K, F, du_dp, direction, q):
     Cholesky, or ``K = L D L^T`` with a positive ``D`` (see
     :func:`~shellform.solvers.step_bounds.linearised_critical_increment`).
     An estimate, not a stability check: a start it cannot judge goes
-    without one.
+    without one, and so does a run on a branch its caller knows stable
+    (``definite_branch`` without ``stability``: the caller counts and stops
+    for itself).
     """
+    if tr.o.definite_branch and not tr.o.stability:
+        return None
     if isinstance(F, LDLFactor):
         try:
             if not np.all(F.d > 0.0):
