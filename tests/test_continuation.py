@@ -353,3 +353,48 @@ def test_a_branch_known_stable_is_factorised_by_cholesky_first(monkeypatch):
     assert calls and plain.success and stable.success
     np.testing.assert_allclose(stable["lam"], plain["lam"], rtol=1e-12)
     np.testing.assert_allclose(stable["displacement"], plain["displacement"], rtol=1e-9, atol=1e-14)
+
+
+def test_cholesky_is_not_tried_again_within_a_point_after_it_failed(monkeypatch):
+    """Past a limit point Cholesky fails; the same point's remaining factorisations go to LDL^T at
+    once, the next point (a step, a trial point of the location) tries Cholesky again. The start,
+    uncounted yet, is factorised by Cholesky and still bounds the first step by the linearised
+    distance to the nearest critical point."""
+    import importlib
+
+    import shellform.solvers.continuation.problem as problem
+
+    start = importlib.import_module("shellform.solvers.continuation.start")
+    log = []
+    chol, ldl = problem.CholeskyFactor, problem.LDLFactor
+
+    def cholesky(*a, **k):
+        try:
+            F = chol(*a, **k)
+        except Exception:
+            log.append("cholesky failed")
+            raise
+        log.append("cholesky")
+        return F
+
+    monkeypatch.setattr(problem, "CholeskyFactor", cholesky)
+    monkeypatch.setattr(problem, "LDLFactor", lambda *a, **k: log.append("ldl") or ldl(*a, **k))
+    new_point = problem.Problem.new_point
+    monkeypatch.setattr(problem.Problem, "new_point", lambda self: log.append("point") or new_point(self))
+    estimates = []
+    critical_increment = start.critical_increment
+    monkeypatch.setattr(start, "critical_increment",
+                        lambda *a: estimates.append(critical_increment(*a)) or estimates[-1])
+    system = von_mises("load")
+    res = trace_path(system, "load", stop_after_events=1, max_steps=100)
+    assert res.events and res.events[0].kind == "limit" and res.events[0].located
+    np.testing.assert_allclose(res.events[0].parameter, P_CR, rtol=1e-6)
+    assert log[0] == "cholesky" and estimates and estimates[0] is not None and estimates[0] > 0.0
+    assert "cholesky failed" in log
+    points = "\n".join(log).split("point")
+    for seq in points:
+        steps = [s for s in seq.split("\n") if s]
+        if "cholesky failed" in steps:
+            after = steps[steps.index("cholesky failed") + 1:]
+            assert "cholesky" not in after and "cholesky failed" not in after and after.count("ldl") == len(after)
+    assert any(s.count("ldl") >= 2 for s in points)  # a point whose later factorisations went to LDL^T alone

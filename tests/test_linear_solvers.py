@@ -271,3 +271,58 @@ def test_cholesky_of_every_stored_entry_needs_no_new_analysis_when_a_zero_turns_
     with mock.patch.object(cholmod, "symbolic", side_effect=AssertionError("analysed again")):
         with pytest.raises(AssertionError):
             CholeskyFactor(A, previous=F)
+
+
+def test_a_zero_pivot_never_gives_an_answer_whichever_analysis_the_factor_takes():
+    """A fresh analysis raises at once; a kept one (pooled or from ``previous``, where qdldl's
+    update stops at the zero pivot without a word) raises when the pivots are read or a solve is
+    asked for; the analysis survives for the next matrix of the pattern."""
+    from shellform.solvers import ldl
+
+    A = laplacian_3d(20)
+    S = A.copy()
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    S.data[(rows == 7) | (A.indices == 7)] = 0.0  # row and column 7 zero, kept in the pattern
+    b = np.ones(A.shape[0])
+    ldl._POOL.clear()
+    with pytest.raises(SingularMatrixError):
+        LDLFactor(S)  # fresh
+    first = LDLFactor(A)
+    del first  # its analysis goes to the pool
+    pooled = LDLFactor(S)
+    with pytest.raises(SingularMatrixError):
+        pooled.solve(b)
+    with pytest.raises(SingularMatrixError, match="zero pivot"):
+        pooled.n_negative_pivots
+    F = LDLFactor(A)
+    taken = LDLFactor(S, previous=F)
+    with pytest.raises(SingularMatrixError, match="zero pivot"):
+        taken.inertia
+    with pytest.raises(SingularMatrixError):
+        taken.solve(b)
+    G = LDLFactor(2.0 * A, previous=taken)
+    assert G.inertia == (0, 0, A.shape[0])
+    np.testing.assert_allclose(2.0 * A @ G.solve(b), b, atol=1e-12)
+
+
+def test_pivots_are_read_from_qdldl_only_for_the_inertia():
+    A = laplacian_3d(30)
+    B = sp.csr_matrix(A - 1.3 * sp.identity(A.shape[0]))
+    F = LDLFactor(B)
+    x = F.solve(np.ones(B.shape[0]))
+    assert F._d is None  # solving needs no pivots
+    np.testing.assert_allclose(B @ x, np.ones(B.shape[0]), atol=1e-9)
+    n_neg = int(np.sum(np.linalg.eigvalsh(B.toarray()) < 0.0))
+    assert n_neg > 0 and F.n_negative_pivots == n_neg and F._d is not None
+    G = LDLFactor(B)
+    H = LDLFactor(B, previous=G)  # G gives its storage to H before its pivots were read
+    with pytest.raises(SingularMatrixError, match="gave its storage"):
+        G.d
+    assert H.n_negative_pivots == n_neg
+
+
+def test_a_non_finite_entry_is_named():
+    A = laplacian_3d(10).tolil()
+    A[4, 4] = np.nan
+    with pytest.raises(SingularMatrixError, match="non-finite entry \\(row 4, column 4\\)"):
+        LDLFactor(sp.csr_matrix(A))

@@ -50,24 +50,20 @@ _POOL = _SymbolicPool()
 
 
 def _refactorise(solver, U: sp.csc_matrix):
-    """New values into a qdldl solver's kept analysis; raises on a zero or non-finite pivot.
+    """New values into a qdldl solver's kept analysis (the analysis goes back to the pool on failure).
 
-    ``update`` does not report a zero pivot itself, and qdldl hands the pivots
-    out only with the whole ``L`` (1.5-2 ms at 3.7k unknowns on the lattice
-    dome's tangent, a quarter of the numeric factorisation). One solve (0.2 ms
-    there) tells the same: a zero or non-finite pivot makes every entry of its
-    row of ``D^-1 y`` infinite or NaN, whatever ``y``. A solver that fails goes
-    back to the pool: its analysis still holds for the pattern.
+    ``update`` stops at a zero pivot without saying so, the rest of the
+    factor left from the previous matrix: the pivots' check when they are
+    read (:attr:`LDLFactor.d`) and every solve's backward-error check find
+    it. Reading the pivots at once would cost their whole ``L`` (1.5-2 ms at
+    3.7k unknowns on the lattice dome's tangent, a quarter of the numeric
+    factorisation), which the corrector's solves past a limit point never need.
     """
     try:
         solver.update(U, upper=True)
-        ok = bool(np.all(np.isfinite(solver.solve(np.ones(U.shape[0])))))
     except (RuntimeError, ValueError) as exc:
         _POOL.give(U, solver)
         raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
-    if not ok:
-        _POOL.give(U, solver)
-        raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
     return solver
 
 
@@ -79,9 +75,10 @@ class LDLFactor:
     ``D`` has negative entries. Without pivoting a factorisation of an
     indefinite matrix can meet a tiny pivot or grow large entries, so
 
-    * a non-finite entry of ``A`` or a zero or non-finite pivot raises
-      :class:`SingularMatrixError`; the pivots themselves (``d``) are read
-      from qdldl only when the inertia is asked for;
+    * a non-finite entry of ``A`` raises :class:`SingularMatrixError`, and
+      so does a zero or non-finite pivot: in the constructor for a fresh
+      analysis, otherwise when the pivots ``d`` are read (only for the
+      inertia) or by the solves' check below;
     * every solve is refined iteratively and raises when its normwise backward
       error ``|A x - b| / (|A| |x| + |b|)`` (infinity norms) stays above
       ``check``. This measure, unlike a residual relative to ``|b|`` alone,
@@ -113,7 +110,7 @@ class LDLFactor:
     Raises
     ------
     SingularMatrixError
-        When ``A`` has a non-finite entry, or a pivot is zero or not finite.
+        When ``A`` has a non-finite entry, or a fresh analysis meets a zero pivot.
     """
 
     method = "ldl"
@@ -175,14 +172,13 @@ class LDLFactor:
     def d(self) -> np.ndarray:
         """The pivots (the diagonal of ``D``), read from the factor when first asked for.
 
-        qdldl hands them out only with the whole ``L`` (see :func:`_refactorise`),
-        which a factor that only solves never needs: the corrector's
-        iterations past a limit point ask for no inertia.
+        qdldl hands them out only with the whole ``L`` (see :func:`_refactorise`).
 
         Raises
         ------
         SingularMatrixError
-            When the factor gave its storage to a later one before they were read.
+            When a pivot is zero or not finite, or the factor gave its storage
+            to a later one before they were read.
         """
         if self._d is None:
             if self._solver is None:
