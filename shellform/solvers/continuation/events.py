@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from ..linear import SingularMatrixError, single_threaded
-from ..stability import DENSE_LIMIT, InertiaError, critical_modes, start_vector
+from ..stability import DENSE_LIMIT, InertiaError, critical_modes, eigsh_nearest_zero
 from .corrector import correct
 from .problem import BranchCrossing, LocationFailure, StepFailure
 from .results import PathEvent
@@ -79,15 +79,13 @@ def eigenvalue_near_zero(K, F) -> float | None:
             with single_threaded():
                 w = sla.eigvalsh(K.toarray())
             return float(w[np.argmin(np.abs(w))])
-        op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b)), dtype=float)
-        w = spla.eigsh(K, k=1, sigma=0.0, which="LM", OPinv=op, return_eigenvectors=False, tol=1e-6,
-                       v0=start_vector(n))
+        w = eigsh_nearest_zero(K, F.solve, tol=1e-6)
         return float(w[0])
     except (SingularMatrixError, RuntimeError, ValueError, spla.ArpackNoConvergence):
         return None
 
 
-def critical_mode(tr, K) -> tuple[float, np.ndarray]:
+def critical_mode(tr, K, F=None) -> tuple[float, np.ndarray]:
     """The eigenpair of ``K`` closest to zero at a located event (unit vector, largest entry positive).
 
     The reported point lies next to the critical point, not on it, so ``K`` is
@@ -96,16 +94,17 @@ def critical_mode(tr, K) -> tuple[float, np.ndarray]:
     shift off zero relative to the largest diagonal entry (``critical_modes``)
     lies among the soft eigenvalues of a rod network, twelve orders of
     magnitude below that entry, and took thousands of iterations at each of the
-    hemisphere's folds. Dense below ``DENSE_LIMIT`` unknowns, and
+    hemisphere's folds. ``F``: the factor of ``K`` the location made, used
+    while it can still solve. Dense below ``DENSE_LIMIT`` unknowns, and
     ``critical_modes`` where the factorisation fails.
     """
     n = K.shape[0]
     if n > DENSE_LIMIT:
-        F = tr.pb.factor(K)
+        if not _factor_alive(F):
+            F = tr.pb.factor(K)
         if F is not None:
             try:
-                op = spla.LinearOperator((n, n), matvec=lambda b: F.solve(np.ravel(b)), dtype=float)
-                w, V = spla.eigsh(K, k=1, sigma=0.0, which="LM", OPinv=op, v0=start_vector(n))
+                w, V = eigsh_nearest_zero(K, F.solve, vectors=True)
                 v = V[:, 0]
                 return float(w[0]), v * np.sign(v[np.argmax(np.abs(v))])
             except (SingularMatrixError, RuntimeError, ValueError, spla.ArpackNoConvergence):
@@ -117,10 +116,11 @@ def critical_mode(tr, K) -> tuple[float, np.ndarray]:
 class _Trial:
     """One point of the bracket: state, side of the event, test function and tangent."""
 
-    __slots__ = ("sigma", "pt", "before", "f", "tangent", "K")
+    __slots__ = ("sigma", "pt", "before", "f", "tangent", "K", "F")
 
-    def __init__(self, sigma, pt, before, f, tangent=None, K=None):
+    def __init__(self, sigma, pt, before, f, tangent=None, K=None, F=None):
         self.sigma, self.pt, self.before, self.f, self.tangent, self.K = sigma, pt, before, f, tangent, K
+        self.F = F  # the factor of K, while no later factorisation has taken its storage
 
 
 def _probe(tr, kind, pt, u0, p0, sign_A, n_A, sigma) -> _Trial:
@@ -136,10 +136,10 @@ def _probe(tr, kind, pt, u0, p0, sign_A, n_A, sigma) -> _Trial:
             raise
         tangent = None
     if kind == "limit":
-        return _Trial(sigma, pt, math.copysign(1.0, t_dp) == sign_A, t_dp, tangent, K)
+        return _Trial(sigma, pt, math.copysign(1.0, t_dp) == sign_A, t_dp, tangent, K, F)
     before = tr.count(K, F, signed=True) == n_A
     f = eigenvalue_near_zero(K, F) if F is not None else None
-    return _Trial(sigma, pt, before, f, tangent, K)
+    return _Trial(sigma, pt, before, f, tangent, K, F)
 
 
 def _factor_alive(F) -> bool:
@@ -200,14 +200,15 @@ def _end_trial(tr, kind, B, u0, p0, sign_A, n_A, ds_step) -> _Trial:
     lin = tr.last_linearisation
     known = lin is not None and lin[0] is B.u
     K = lin[1] if known else None
+    F = lin[3] if known else None
     if kind == "limit":
-        return _Trial(ds_step, end, False, B.t_dp, (B.t_du, B.t_dp), K)
-    if known and _factor_alive(lin[3]):
-        f = eigenvalue_near_zero(K, lin[3])
+        return _Trial(ds_step, end, False, B.t_dp, (B.t_du, B.t_dp), K, F)
+    if known and _factor_alive(F):
+        f = eigenvalue_near_zero(K, F)
     else:
         trial = _probe(tr, kind, end, u0, p0, sign_A, n_A, ds_step)
-        K, f = trial.K, trial.f
-    return _Trial(ds_step, end, False, f, (B.t_du, B.t_dp), K)
+        K, f, F = trial.K, trial.f, trial.F
+    return _Trial(ds_step, end, False, f, (B.t_du, B.t_dp), K, F)
 
 
 def locate(tr, kind, A, B, ds_step, n_A, must_locate: bool = False):
@@ -310,7 +311,7 @@ def _event(tr, kind, at, bracket, A, n_A, message: str) -> PathEvent:
             t_du, t_dp = -t_du, -t_dp
     t1 = time.perf_counter()
     try:
-        eig, vec = critical_mode(tr, K)
+        eig, vec = critical_mode(tr, K, at.F if K is at.K else None)
     except InertiaError:
         eig, vec = float("nan"), np.zeros(tr.free.size)
     tr.timer.add("stability", t1)
