@@ -42,33 +42,43 @@ def start_vector(n: int) -> np.ndarray:
     return np.random.default_rng(20261202).standard_normal(n)
 
 
-#: Lanczos vectors of the first, short attempt of :func:`eigsh_nearest_zero` (and its restarts)
+#: Lanczos vectors of the first, short attempt of :func:`eigsh_short_first` (and its restarts)
 SHORT_BASIS, SHORT_RESTARTS = 6, 2
 
 
+def eigsh_short_first(A, **kw):
+    """``scipy.sparse.linalg.eigsh(A, **kw)`` for one eigenvalue, a short Lanczos basis tried first.
+
+    The eigenvalues shellform asks for one at a time are mostly well apart from
+    the rest: the one nearest zero at and next to a critical point, the
+    extreme one of the linearised step bound. A short basis finds them in
+    5-7 solves against ARPACK's default 20 (on the lattice domes at their
+    limit points 3 ms against 13 at 3,711 unknowns, 29-42 against 95 at
+    16,131; the step bound's 5 against 10 and 29 against 119 ms at 3,711 and
+    16,131). Where the eigenvalues cluster (the soft modes of a pre-stressed
+    rod network) a short basis restarts many times (255 solves against 51 at
+    the n = 11 hemisphere), so it gets ``SHORT_RESTARTS`` restarts before the
+    default basis takes over, 13 solves lost (``benchmarks/bench_lanczos_basis.py``).
+    """
+    n = A.shape[0]
+    if n > 2 * SHORT_BASIS and "ncv" not in kw:
+        try:
+            return spla.eigsh(A, ncv=SHORT_BASIS, **{**kw, "maxiter": SHORT_RESTARTS})
+        except spla.ArpackNoConvergence:
+            pass
+    return spla.eigsh(A, **kw)
+
+
 def eigsh_nearest_zero(K, solve, tol: float = 0.0, vectors: bool = False, maxiter: int | None = None):
-    """The eigenvalue of ``K`` nearest zero (and its eigenvector), shift-invert Lanczos with ``solve`` = ``K^-1``.
+    """The eigenvalue of ``K`` nearest zero (and its eigenvector): shift-invert Lanczos, ``solve`` applying ``K^-1``.
 
-    At and next to a critical point that eigenvalue is far nearer zero than
-    the next, so a short basis finds it: on the lattice domes at their limit
-    points 5-7 solves against ARPACK's default 20 (13 ms against 3 ms at 3,711
-    unknowns, 95 against 29-42 at 16,131). Where the soft eigenvalues
-    cluster (a pre-stressed rod network) a short basis restarts many times
-    (255 solves against 51 at the n = 11 hemisphere), so it gets
-    ``SHORT_RESTARTS`` restarts before the default basis takes over
-    (``benchmarks/bench_lanczos_basis.py``).
-
-    Returns ``w`` (one eigenvalue) or ``(w, V)``; raises what ``eigsh`` raises.
+    Returns ``w`` (one eigenvalue) or ``(w, V)`` (:func:`eigsh_short_first`);
+    raises what ``eigsh`` raises.
     """
     n = K.shape[0]
     op = spla.LinearOperator((n, n), matvec=lambda b: solve(np.ravel(b)), dtype=float)
-    kw = dict(k=1, sigma=0.0, which="LM", OPinv=op, tol=tol, return_eigenvectors=vectors, v0=start_vector(n))
-    if n > 2 * SHORT_BASIS:
-        try:
-            return spla.eigsh(K, ncv=SHORT_BASIS, maxiter=SHORT_RESTARTS, **kw)
-        except spla.ArpackNoConvergence:
-            pass
-    return spla.eigsh(K, maxiter=maxiter, **kw)
+    return eigsh_short_first(K, k=1, sigma=0.0, which="LM", OPinv=op, tol=tol, return_eigenvectors=vectors,
+                             v0=start_vector(n), maxiter=maxiter)
 
 
 class InertiaError(RuntimeError):

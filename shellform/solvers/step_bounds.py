@@ -27,7 +27,7 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from .linear import SingularMatrixError
-from .stability import DENSE_LIMIT, start_vector
+from .stability import DENSE_LIMIT, eigsh_short_first, start_vector
 
 #: a step goes at most this many times the predicted distance to the next fold
 FOLD_OVERSHOOT = 2.0
@@ -73,8 +73,8 @@ def linearised_critical_increment(jacobian, u: np.ndarray, p: float, K, F, du_dp
             theta = float(sla.eigh(D.toarray(), K.toarray(), eigvals_only=True, subset_by_index=[0, 0])[0])
         else:
             Kinv = spla.LinearOperator(K.shape, matvec=F.solve, dtype=float)
-            theta = float(spla.eigsh(D, k=1, M=K, Minv=Kinv, which="SA", tol=1e-3, maxiter=200,
-                                     v0=start_vector(n), return_eigenvectors=False)[0])
+            theta = float(eigsh_short_first(D, k=1, M=K, Minv=Kinv, which="SA", tol=1e-3, maxiter=200,
+                                            v0=start_vector(n), return_eigenvectors=False)[0])
     except (sla.LinAlgError, spla.ArpackError, spla.ArpackNoConvergence, SingularMatrixError, ValueError):
         return None
     if not (np.isfinite(theta) and theta < 0.0):
