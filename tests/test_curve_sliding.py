@@ -46,6 +46,28 @@ def test_a_closed_curve_has_no_corner_and_finds_the_nearest_point():
     assert end.tolist() == [True, False] and t[0] == o.domain[0]
 
 
+def test_a_nearest_point_newton_does_not_settle_on_is_found_between_the_samples(monkeypatch):
+    """Where Newton is cut off unsettled, the golden-section fallback gives the nearest point:
+    normal to the curve and no farther than Newton's own answer (closed ring, open arch, a node
+    beyond the arch's end)."""
+    import shellform.geometry.space_curve as space_curve
+
+    angles = np.linspace(0.1, 6.2, 23)
+    x_ring = np.column_stack([2.3 * np.cos(angles), 2.3 * np.sin(angles), np.full(23, 0.4)])
+    x_arch = np.array([[1.0, 0.3, 1.2], [3.1, -0.2, 0.4], [-1.0, 0.0, -0.5], [2.0, 0.0, 0.2]])
+    cases = [(SpaceCurve.through(ring(2.0, 25)), x_ring), (SpaceCurve.through(arch()), x_arch)]
+    answers = [c.nearest(x) for c, x in cases]
+    monkeypatch.setattr(space_curve, "NEAREST_ITERATIONS", 1)
+    for (c, x), (t_ref, end_ref) in zip(cases, answers):
+        t, end = c.nearest(x)
+        d, d_ref = np.linalg.norm(c(t) - x, axis=1), np.linalg.norm(c(t_ref) - x, axis=1)
+        assert np.all(d <= d_ref + 1e-12)
+        np.testing.assert_allclose(d, d_ref, rtol=1e-12)
+        inside = ~end
+        np.testing.assert_allclose(np.einsum("ni,ni->n", c(t, 1), x - c(t))[inside], 0.0, atol=1e-10)
+        assert end.tolist() == end_ref.tolist()
+
+
 def _derivative_check(effect, q, h=1e-6):
     n = len(q)
     g = effect.gradient(q)

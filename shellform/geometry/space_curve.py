@@ -23,6 +23,8 @@ from ..errors import ModelError
 SAMPLES_PER_SPAN = 16
 #: Newton iterations of the nearest point (quadratic convergence: a start in the basin needs 4 to 6)
 NEAREST_ITERATIONS = 30
+#: most golden-section steps where Newton does not settle (each shrinks the bracket by 0.618: 1e-14 in 70)
+GOLDEN_ITERATIONS = 100
 
 
 @dataclass(frozen=True)
@@ -94,13 +96,19 @@ class SpaceCurve:
         """Parameter of the point of the curve nearest to each of ``x`` (n, 3), and whether it is an end.
 
         The nearest of dense samples starts Newton's method on ``c'(t) . (c(t) - x) = 0``; an open curve's
-        parameter stays within its ends, where the nearest point may be an end itself.
+        parameter stays within its ends, where the nearest point may be an end itself. A node for which
+        Newton does not settle (where the distance is nearly flat along the curve, next to its centre of
+        curvature) gets the minimum of the distance between the samples either side of its nearest
+        sample, by golden-section search: the spring's force is then still normal to the curve, where an
+        unsettled Newton iterate would have left a tangential force in the equilibrium.
         """
         x = np.asarray(x, dtype=float).reshape(-1, 3)
         a, b = self.domain
         samples, tree = self._samples
-        t = samples[tree.query(x)[1]]
+        t0 = samples[tree.query(x)[1]]
         scale = b - a
+        t = t0.copy()
+        settled = np.zeros(len(t), dtype=bool)
         for _ in range(NEAREST_ITERATIONS):
             r = self(t) - x
             c1, c2 = self(t, 1), self(t, 2)
@@ -111,9 +119,53 @@ class SpaceCurve:
             t_new = t - step
             if not self.closed:
                 t_new = np.clip(t_new, a, b)
-            done = np.all(np.abs(t_new - t) <= 1e-14 * scale)
+            settled = np.abs(t_new - t) <= 1e-14 * scale
             t = t_new
-            if done:
+            if np.all(settled):
                 break
+        if not np.all(settled):
+            spacing = samples[1] - samples[0]
+            k = np.flatnonzero(~settled)
+            t[k] = self._golden_nearest(x[k], t0[k] - spacing, t0[k] + spacing)
         end = np.zeros(len(t), dtype=bool) if self.closed else (t <= a) | (t >= b)
         return self._wrap(t), end
+
+    def _golden_nearest(self, x, lo, hi) -> np.ndarray:
+        """The parameter in ``[lo, hi]`` (clipped to an open curve's ends) nearest to each of ``x``: golden section."""
+        a, b = self.domain
+        if not self.closed:
+            lo, hi = np.clip(lo, a, b), np.clip(hi, a, b)
+        ratio = (np.sqrt(5.0) - 1.0) / 2.0
+
+        def distance(t):
+            return np.linalg.norm(self(t) - x, axis=1)
+
+        c, d = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+        fc, fd = distance(c), distance(d)
+        for _ in range(GOLDEN_ITERATIONS):
+            if not np.any(hi - lo > 1e-14 * (b - a)):
+                break
+            left = fc < fd  # the minimum lies in [lo, d]: d becomes hi, c becomes d
+            hi, lo = np.where(left, d, hi), np.where(left, lo, c)
+            c_new, d_new = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+            c, d, f_old_c, f_old_d = np.where(left, c_new, d), np.where(left, c, d_new), fc, fd
+            fc = np.where(left, distance(c), f_old_d)
+            fd = np.where(left, f_old_c, distance(d))
+        t = 0.5 * (lo + hi)
+        # the distance is flat at its minimum, so comparing it places t to about 1e-8 only: bisection on its
+        # slope c'(t) . (c(t) - x), which crosses zero there, finishes the job where it changes sign
+        lo, hi = t - 1e-6 * (b - a), t + 1e-6 * (b - a)
+        if not self.closed:
+            lo, hi = np.clip(lo, a, b), np.clip(hi, a, b)
+
+        def slope(t):
+            return np.einsum("ni,ni->n", self(t, 1), self(t) - x)
+
+        bracketed = (slope(lo) < 0.0) & (slope(hi) > 0.0)
+        for _ in range(GOLDEN_ITERATIONS):
+            if not np.any(bracketed & (hi - lo > 1e-15 * (b - a))):
+                break
+            mid = 0.5 * (lo + hi)
+            right = slope(mid) > 0.0
+            hi, lo = np.where(right, mid, hi), np.where(right, lo, mid)
+        return np.where(bracketed, 0.5 * (lo + hi), t)
