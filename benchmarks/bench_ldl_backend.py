@@ -9,9 +9,15 @@ check), on
   1 mm Voronoi length) for each ``--sizes`` n, and the same tangent shifted to
   have a negative eigenvalue (``K - 2 |lambda_min| I``);
 * the tangent of a taut n x n rope net plus a mass term (``bench_factorization.py``)
-  for each ``--nets`` n.
+  for each ``--nets`` n;
+* the tangent of the apex-loaded lattice dome (``bench_default_path.py``) at the
+  located first limit point (one negative eigenvalue), for each ``--domes`` ring count.
 
-    SHELLFORM_LDL=auto python benchmarks/bench_ldl_backend.py --sizes 5 11 19 29 --nets 20 40 80
+The multiply-adds of QDLDL's numeric factorisation (the sum over the columns of its
+``L`` of ``c (c + 1)``, ``c`` the column's count) are what it costs: the domes' fill is
+several times the hemispheres' at the same size.
+
+    SHELLFORM_LDL=auto python benchmarks/bench_ldl_backend.py --sizes 5 11 19 29 --nets 20 40 80 --domes 10 20 30
 
 Needs pypardiso (``pip install shellform[pardiso]``). MKL runs on one
 thread (``shellform.solvers.pardiso.THREADS``).
@@ -57,19 +63,36 @@ def row(name, K, repeat):
         t_sol = median_time(lambda: keep[0].solve(b), repeat)
         cells.append((t_fac, t_sol, keep[0].n_negative_pivots, keep[0].backend))
     (q_f, q_s, q_neg, _), (p_f, p_s, p_neg, p_used) = cells
-    print(f"| {name} | {K.shape[0]} | {K.nnz} | {q_f * 1e3:.1f} | {q_s * 1e3:.1f} | {p_f * 1e3:.1f} | "
-          f"{p_s * 1e3:.1f} | {q_f / p_f:.2f} | {q_neg} / {p_neg} ({p_used}) |", flush=True)
+    flops = qdldl_flops(K)
+    print(f"| {name} | {K.shape[0]} | {K.nnz} | {flops / 1e6:.1f} | {q_f * 1e3:.1f} | {q_s * 1e3:.1f} | "
+          f"{p_f * 1e3:.1f} | {p_s * 1e3:.1f} | {q_f / p_f:.2f} | {q_neg} / {p_neg} ({p_used}) |", flush=True)
+
+
+def qdldl_flops(K) -> float:
+    """Multiply-adds of QDLDL's numeric factorisation: the sum over columns of L of their counts squared."""
+    F = LDLFactor(K, backend="qdldl")
+    counts = np.diff(F._solver.factors()[0].tocsc().indptr).astype(float)
+    return float(np.sum(counts * (counts + 1.0)))
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="*", default=[5, 11, 19, 29])
     p.add_argument("--nets", type=int, nargs="*", default=[20, 40, 80])
+    p.add_argument("--domes", type=int, nargs="*", default=[10, 20, 30])
     p.add_argument("--repeat", type=int, default=5)
     args = p.parse_args(argv)
-    print("| model | unknowns | entries | QDLDL factor [ms] | QDLDL solve [ms] | PARDISO factor [ms] | "
-          "PARDISO solve [ms] | factor ratio | negative pivots QDLDL / PARDISO (backend used) |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
+    print("| model | unknowns | entries | QDLDL multiply-adds [10^6] | QDLDL factor [ms] | QDLDL solve [ms] | "
+          "PARDISO factor [ms] | PARDISO solve [ms] | factor ratio | negative pivots QDLDL / PARDISO (backend used) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    for rings in args.domes:
+        from bench_default_path import apex_loaded_dome
+
+        from shellform.solvers.continuation import trace_path
+
+        system = apex_loaded_dome(rings)
+        ev = trace_path(system, "load", stop_after_events=1, max_steps=200).events[0]
+        row(f"lattice dome {rings} rings, past its limit point", system.tangent_free(ev.q), args.repeat)
     for n in args.nets:
         from bench_factorization import taut_tangent
 

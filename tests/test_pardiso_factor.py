@@ -247,3 +247,31 @@ def test_the_backend_switch(monkeypatch):
     else:
         with pytest.raises(ImportError, match="pypardiso"):
             LDLFactor(A)
+
+
+def grid_laplacian_3d(n, diagonal=2.2):
+    T = sp.diags([-np.ones(n - 1), diagonal * np.ones(n), -np.ones(n - 1)], [-1, 0, 1])
+    I = sp.identity(n)
+    return sp.csr_matrix(sp.kron(sp.kron(T, I), I) + sp.kron(sp.kron(I, T), I) + sp.kron(sp.kron(I, I), T))
+
+
+@needs_pardiso
+def test_auto_sends_a_small_pattern_with_much_fill_to_pardiso_after_its_first_factorisation():
+    """Below MIN_SIZE the fill decides: a 14^3 grid (2,744 unknowns, 2.3e7 multiply-adds by QDLDL) goes to
+    PARDISO once its first factorisation has counted them; a band matrix of the same size stays."""
+    from shellform.solvers import ldl
+
+    A = grid_laplacian_3d(14)
+    assert A.shape[0] < pardiso.MIN_SIZE
+    ldl._COSTS._items.clear()
+    first = LDLFactor(A)
+    assert first.backend == "qdldl" and ldl._COSTS.get(upper_csc(A)) >= pardiso.MIN_MULTIPLY_ADDS
+    second = LDLFactor(1.5 * A)
+    assert second.backend == "pardiso" and second.inertia == first.inertia == (0, 0, A.shape[0])
+    b = np.ones(A.shape[0])
+    np.testing.assert_allclose(1.5 * A @ second.solve(b), b, atol=1e-10)
+    n = A.shape[0]
+    R = sp.csr_matrix(sp.diags([-np.ones(n - 1), np.where(np.arange(n) % 7 == 0, -3.0, 3.0), -np.ones(n - 1)],
+                               [-1, 0, 1]))
+    assert LDLFactor(R).backend == "qdldl" and ldl._COSTS.get(upper_csc(R)) < pardiso.MIN_MULTIPLY_ADDS
+    assert LDLFactor(R).backend == "qdldl"

@@ -49,6 +49,36 @@ class _SymbolicPool:
 _POOL = _SymbolicPool()
 
 
+class _PatternCosts:
+    """QDLDL's cost of a numeric factorisation (multiply-adds), by sparsity pattern, for the patterns met last.
+
+    Read from the ``L`` of the first factorisation of a pattern (the sum over
+    its columns of ``c (c + 1)``, ``c`` the column's count), so that the
+    ``auto`` backend can send a pattern with much fill to PARDISO
+    (:func:`~shellform.solvers.pardiso.use_pardiso`).
+    """
+
+    size = 8
+
+    def __init__(self):
+        self._items: list[tuple[np.ndarray, np.ndarray, float]] = []
+
+    def get(self, U: sp.csc_matrix) -> float | None:
+        for indptr, indices, cost in self._items:
+            if indptr.shape == U.indptr.shape and indices.shape == U.indices.shape and np.array_equal(
+                    indptr, U.indptr) and np.array_equal(indices, U.indices):
+                return cost
+        return None
+
+    def put(self, U: sp.csc_matrix, L) -> None:
+        counts = np.diff(sp.csc_matrix(L).indptr).astype(float)
+        self._items.insert(0, (U.indptr.copy(), U.indices.copy(), float(np.sum(counts * (counts + 1.0)))))
+        del self._items[self.size:]
+
+
+_COSTS = _PatternCosts()
+
+
 def _refactorise(solver, U: sp.csc_matrix):
     """New values into a qdldl solver's kept analysis (the analysis goes back to the pool on failure).
 
@@ -137,14 +167,14 @@ class LDLFactor:
         self._solver = None
         self._norm_inf = None
         self.backend = "qdldl"
-        if pardiso.use_pardiso(self.n, backend):
+        if pardiso.use_pardiso(self.n, backend, _COSTS.get(U)):
             solver = pardiso.factor(U, previous)
             if solver is not None:  # its inertia is trusted; otherwise QDLDL factorises this matrix
                 self._U, self._solver, self.d, self.backend = U, solver, solver.d, "pardiso"
                 return
         elif isinstance(getattr(previous, "_solver", None), pardiso.PardisoSolver):
             previous = None  # QDLDL cannot take over PARDISO's analysis
-        pooled = None
+        pooled, fresh = None, False
         if previous is None or previous._solver is None:
             pooled = _POOL.take(U)
         if pooled is not None:
@@ -164,9 +194,14 @@ class LDLFactor:
                 solver = qdldl.Solver(U, upper=True)
             except (RuntimeError, ValueError) as exc:  # zero pivot: not quasi-definite in this ordering
                 raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
+            fresh = True
         self._U = U
         self._solver = solver
         self._d = None
+        if fresh and _COSTS.get(U) is None:
+            L, d, _ = solver.factors()  # a new pattern: its cost, once, and the pivots come with it
+            _COSTS.put(U, L)
+            self.d = self._checked(np.asarray(d, dtype=float))
 
     @property
     def d(self) -> np.ndarray:
@@ -184,11 +219,14 @@ class LDLFactor:
             if self._solver is None:
                 raise SingularMatrixError("this LDL^T factor gave its storage to a later factorisation before "
                                           "its pivots were read")
-            d = np.asarray(self._solver.factors()[1], dtype=float)
-            if not np.all(np.isfinite(d)) or np.any(d == 0.0):
-                raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
-            self._d = d
+            self._d = self._checked(np.asarray(self._solver.factors()[1], dtype=float))
         return self._d
+
+    @staticmethod
+    def _checked(d: np.ndarray) -> np.ndarray:
+        if not np.all(np.isfinite(d)) or np.any(d == 0.0):
+            raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
+        return d
 
     @d.setter
     def d(self, value) -> None:

@@ -19,7 +19,15 @@ rope net 40 x 40       4,332      5.8         3.2
 rope net 80 x 80       18,252     49.5        18.7
 =====================  =========  ==========  ===========
 
-hence :data:`MIN_SIZE`. The whole mode-I indentation curve of the n = 19
+hence :data:`MIN_SIZE`. What decides is the fill, not the size: QDLDL's
+multiply-adds (the sum over the columns of its ``L`` of ``c (c + 1)``) are
+0.5 and 4.7 million for the n = 5 and 11 hemispheres, but 19 million for the
+20-ring lattice dome (3,711 unknowns), where PARDISO takes 3.8 ms against
+QDLDL's 10.2; PARDISO was faster on every pattern measured from 10^7
+multiply-adds up and slower below 5 x 10^6, except the 10-ring dome by
+0.4 ms (``bench_ldl_backend.md``). Below :data:`MIN_SIZE`, ``auto`` therefore
+sends a pattern to PARDISO when the first factorisation of it (by QDLDL)
+counted :data:`MIN_MULTIPLY_ADDS` or more. The whole mode-I indentation curve of the n = 19
 hemisphere took 16-18 s against 25 s with QDLDL alone, with the same
 thresholds, steps and Newton iterations; n = 39 took 122 s against 948 s.
 
@@ -28,8 +36,9 @@ MKL's wheels are about 200 MB and x86 only). Which backend an
 :class:`LDLFactor` uses is its ``backend`` argument or, by default, the
 environment variable ``SHELLFORM_LDL``:
 
-* ``auto`` (default): PARDISO from :data:`MIN_SIZE` unknowns up when
-  pypardiso can be imported, QDLDL otherwise;
+* ``auto`` (default): PARDISO from :data:`MIN_SIZE` unknowns up, and for
+  smaller patterns whose QDLDL factorisation costs :data:`MIN_MULTIPLY_ADDS`
+  or more, when pypardiso can be imported; QDLDL otherwise;
 * ``qdldl``: always QDLDL;
 * ``pardiso``: PARDISO for every nonempty matrix (an error without pypardiso).
 
@@ -61,6 +70,8 @@ BACKENDS = ("auto", "qdldl", "pardiso")
 
 #: ``auto`` uses PARDISO from this many unknowns up (see the module docstring)
 MIN_SIZE = 10_000
+#: ... and below it for a pattern whose QDLDL factorisation costs this many multiply-adds or more
+MIN_MULTIPLY_ADDS = 1.0e7
 
 #: MKL threads of a PARDISO call. One, like the dense solves under
 #: :func:`~shellform.solvers.factor_base.single_threaded`: the reference machine has two cores, the
@@ -146,10 +157,11 @@ def backend_choice() -> str:
     return choice
 
 
-def use_pardiso(n: int, backend: str | None = None) -> bool:
+def use_pardiso(n: int, backend: str | None = None, multiply_adds: float | None = None) -> bool:
     """Whether an LDL^T factorisation of ``n`` unknowns goes to PARDISO.
 
     ``backend`` is one of :data:`BACKENDS`; None reads ``SHELLFORM_LDL`` (see the module docstring).
+    ``multiply_adds``: QDLDL's cost of the pattern, where a factorisation of it has shown it.
     """
     choice = backend_choice() if backend is None else backend
     if choice not in BACKENDS:
@@ -160,7 +172,8 @@ def use_pardiso(n: int, backend: str | None = None) -> bool:
         if not available():
             raise ImportError(f"{BACKEND_VARIABLE}=pardiso needs pypardiso (pip install shellform[pardiso])")
         return True
-    return n >= MIN_SIZE and available()
+    large = n >= MIN_SIZE or (multiply_adds is not None and multiply_adds >= MIN_MULTIPLY_ADDS)
+    return large and available()
 
 
 def _iparm() -> np.ndarray:
