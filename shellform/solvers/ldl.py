@@ -52,10 +52,9 @@ _POOL = _SymbolicPool()
 class _PatternCosts:
     """QDLDL's cost of a numeric factorisation (multiply-adds), by sparsity pattern, for the patterns met last.
 
-    Read from the ``L`` of the first factorisation of a pattern (the sum over
-    its columns of ``c (c + 1)``, ``c`` the column's count), so that the
-    ``auto`` backend can send a pattern with much fill to PARDISO
-    (:func:`~shellform.solvers.pardiso.use_pardiso`).
+    The sum over the columns of its ``L`` of ``c (c + 1)``, ``c`` the column's
+    count (:func:`_pattern_cost`), so that the ``auto`` backend can send a
+    pattern with much fill to PARDISO (:func:`~shellform.solvers.pardiso.use_pardiso`).
     """
 
     size = 8
@@ -70,13 +69,35 @@ class _PatternCosts:
                 return cost
         return None
 
-    def put(self, U: sp.csc_matrix, L) -> None:
-        counts = np.diff(sp.csc_matrix(L).indptr).astype(float)
-        self._items.insert(0, (U.indptr.copy(), U.indices.copy(), float(np.sum(counts * (counts + 1.0)))))
+    def put(self, U: sp.csc_matrix, cost: float) -> None:
+        self._items.insert(0, (U.indptr.copy(), U.indices.copy(), float(cost)))
         del self._items[self.size:]
 
 
 _COSTS = _PatternCosts()
+
+
+def _pattern_cost(U: sp.csc_matrix) -> float | None:
+    """QDLDL's multiply-adds for the pattern of ``U`` (None where it meets a zero pivot).
+
+    Measured once per pattern, before any factor of it is used, so that every
+    factorisation of a pattern goes to the same backend whatever came before
+    it in the process (the same answers to the last bit). The solver made to
+    measure it goes to the pool: its analysis serves the pattern's QDLDL factors.
+    """
+    import qdldl
+
+    cost = _COSTS.get(U)
+    if cost is None:
+        try:
+            solver = qdldl.Solver(U, upper=True)
+        except (RuntimeError, ValueError):
+            return None
+        counts = np.diff(sp.csc_matrix(solver.factors()[0]).indptr).astype(float)
+        cost = float(np.sum(counts * (counts + 1.0)))
+        _COSTS.put(U, cost)
+        _POOL.give(U, solver)
+    return cost
 
 
 def _refactorise(solver, U: sp.csc_matrix):
@@ -167,14 +188,14 @@ class LDLFactor:
         self._solver = None
         self._norm_inf = None
         self.backend = "qdldl"
-        if pardiso.use_pardiso(self.n, backend, _COSTS.get(U)):
+        if pardiso.use_pardiso(self.n, backend, lambda: _pattern_cost(U)):
             solver = pardiso.factor(U, previous)
             if solver is not None:  # its inertia is trusted; otherwise QDLDL factorises this matrix
                 self._U, self._solver, self.d, self.backend = U, solver, solver.d, "pardiso"
                 return
         elif isinstance(getattr(previous, "_solver", None), pardiso.PardisoSolver):
             previous = None  # QDLDL cannot take over PARDISO's analysis
-        pooled, fresh = None, False
+        pooled = None
         if previous is None or previous._solver is None:
             pooled = _POOL.take(U)
         if pooled is not None:
@@ -194,14 +215,9 @@ class LDLFactor:
                 solver = qdldl.Solver(U, upper=True)
             except (RuntimeError, ValueError) as exc:  # zero pivot: not quasi-definite in this ordering
                 raise SingularMatrixError(f"LDL^T factorisation failed: {exc}") from None
-            fresh = True
         self._U = U
         self._solver = solver
         self._d = None
-        if fresh and _COSTS.get(U) is None:
-            L, d, _ = solver.factors()  # a new pattern: its cost, once, and the pivots come with it
-            _COSTS.put(U, L)
-            self.d = self._checked(np.asarray(d, dtype=float))
 
     @property
     def d(self) -> np.ndarray:

@@ -26,8 +26,10 @@ multiply-adds (the sum over the columns of its ``L`` of ``c (c + 1)``) are
 QDLDL's 10.2; PARDISO was faster on every pattern measured from 10^7
 multiply-adds up and slower below 5 x 10^6, except the 10-ring dome by
 0.4 ms (``bench_ldl_backend.md``). Below :data:`MIN_SIZE`, ``auto`` therefore
-sends a pattern to PARDISO when the first factorisation of it (by QDLDL)
-counted :data:`MIN_MULTIPLY_ADDS` or more. The whole mode-I indentation curve of the n = 19
+sends a pattern to PARDISO when QDLDL's factorisation of it costs
+:data:`MIN_MULTIPLY_ADDS` or more, measured once per pattern before any of
+its factors is used (so that a pattern's backend does not depend on what ran
+before it). The whole mode-I indentation curve of the n = 19
 hemisphere took 16-18 s against 25 s with QDLDL alone, with the same
 thresholds, steps and Newton iterations; n = 39 took 122 s against 948 s.
 
@@ -85,6 +87,7 @@ _MTYPE = -2
 
 _LIB = None  # mkl_rt, loaded on first use
 _AVAILABLE = None
+_INSTALLED = None
 
 
 def _library():
@@ -157,11 +160,22 @@ def backend_choice() -> str:
     return choice
 
 
-def use_pardiso(n: int, backend: str | None = None, multiply_adds: float | None = None) -> bool:
+def installed() -> bool:
+    """Whether pypardiso is installed (without loading MKL, which :func:`available` does)."""
+    global _INSTALLED
+    if _INSTALLED is None:
+        import importlib.util
+
+        _INSTALLED = importlib.util.find_spec("pypardiso") is not None
+    return _INSTALLED
+
+
+def use_pardiso(n: int, backend: str | None = None, multiply_adds=None) -> bool:
     """Whether an LDL^T factorisation of ``n`` unknowns goes to PARDISO.
 
     ``backend`` is one of :data:`BACKENDS`; None reads ``SHELLFORM_LDL`` (see the module docstring).
-    ``multiply_adds``: QDLDL's cost of the pattern, where a factorisation of it has shown it.
+    ``multiply_adds``: a callable giving QDLDL's cost of the pattern (or None), asked for only where it
+    decides, below :data:`MIN_SIZE` with pypardiso installed.
     """
     choice = backend_choice() if backend is None else backend
     if choice not in BACKENDS:
@@ -172,8 +186,12 @@ def use_pardiso(n: int, backend: str | None = None, multiply_adds: float | None 
         if not available():
             raise ImportError(f"{BACKEND_VARIABLE}=pardiso needs pypardiso (pip install shellform[pardiso])")
         return True
-    large = n >= MIN_SIZE or (multiply_adds is not None and multiply_adds >= MIN_MULTIPLY_ADDS)
-    return large and available()
+    if n >= MIN_SIZE:
+        return available()
+    if multiply_adds is None or not installed():
+        return False
+    cost = multiply_adds()
+    return cost is not None and cost >= MIN_MULTIPLY_ADDS and available()
 
 
 def _iparm() -> np.ndarray:
