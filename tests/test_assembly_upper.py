@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 from test_rod_effects import network_from, random_lines
 
-from shellform.assembly import System
+from shellform.assembly import System, build_system
 from shellform.effects.base import Effect
 from shellform.effects.rod_hinge import UPPER_PAIRS, HingeEffect
 from shellform.model import Structure
@@ -148,3 +148,36 @@ def test_repeated_dofs_and_mixed_effects():
     assert np.allclose(system.tangent_free(q).toarray(), total[np.ix_(free, free)], rtol=0, atol=1e-13)
     assert np.allclose(system.tangent(q).toarray(), total, rtol=0, atol=1e-13)
     assert np.allclose(dense_upper(effects[0], q), dense(effects[0], q), rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_a_bar_lattice_tangent_from_upper_values_is_the_sum_of_the_full_blocks(monkeypatch, compiled):
+    """Bars give the upper triangles of their blocks (added by the compiled loop, or by the 0/1 product
+    without numba); ropes keep their full blocks; the tangents, free and full, are the sum of the
+    members' full 6 x 6 blocks, and so are the bars on a subset of members (``on_members``)."""
+    from shellform.effects import rod_compiled
+    from shellform.effects.axial import AxialBar, Rope
+
+    monkeypatch.setattr(rod_compiled, "available", compiled and rod_compiled.available)
+    rng = np.random.default_rng(4)
+    nodes = rng.normal(size=(30, 3))
+    s = Structure(nodes)
+    bars = np.array([(i, j) for i in range(30) for j in range(i + 1, 30) if rng.random() < 0.15])
+    s.add_bars(bars[: len(bars) // 2], EA=rng.uniform(1e5, 1e6, len(bars) // 2))
+    s.add_ropes(bars[len(bars) // 2:], EA=2e5, rest_length=0.9 * np.linalg.norm(
+        nodes[bars[len(bars) // 2:, 1]] - nodes[bars[len(bars) // 2:, 0]], axis=1))
+    s.fix([0, 1, 2])
+    system = build_system(s)
+    assert any(isinstance(e, AxialBar) for e in system.effects) and any(isinstance(e, Rope) for e in system.effects)
+    assert system._upper is not None
+    q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
+    total = sum(dense(e, q) for e in system.effects)
+    tol = 1e-13 * np.abs(total).max()
+    free = system.free
+    assert np.allclose(system.tangent_free(q).toarray(), total[np.ix_(free, free)], rtol=0, atol=tol)
+    assert np.allclose(system.tangent(q).toarray(), total, rtol=0, atol=tol)
+    bar = next(e for e in system.effects if isinstance(e, AxialBar))
+    assert np.allclose(dense_upper(bar, q), dense(bar, q), rtol=0, atol=tol)
+    part = bar.on_members(np.arange(0, len(bar.conn), 2), np.arange(30), s.n_dof)
+    assert len(part.hessian_upper_pattern()[0]) == 21 * len(part.conn)
+    assert np.allclose(dense_upper(part, q), dense(part, q), rtol=0, atol=tol)
