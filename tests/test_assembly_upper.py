@@ -152,13 +152,15 @@ def test_repeated_dofs_and_mixed_effects():
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
 def test_a_bar_lattice_tangent_from_upper_values_is_the_sum_of_the_full_blocks(monkeypatch, compiled):
-    """Bars give the upper triangles of their blocks (added by the compiled loop, or by the 0/1 product
-    without numba); ropes keep their full blocks; the tangents, free and full, are the sum of the
-    members' full 6 x 6 blocks, and so are the bars on a subset of members (``on_members``)."""
+    """Bars (from ``compiled_from`` members, here all) give the upper triangles of their blocks, added by
+    the compiled loop, or without numba their full blocks; ropes keep their full blocks; the tangents, free
+    and full, are the sum of the members' full 6 x 6 blocks, and so are the bars on a subset of members
+    (``on_members``)."""
     from shellform.effects import rod_compiled
     from shellform.effects.axial import AxialBar, Rope
 
     monkeypatch.setattr(rod_compiled, "available", compiled and rod_compiled.available)
+    monkeypatch.setattr(AxialBar, "compiled_from", 0)
     rng = np.random.default_rng(4)
     nodes = rng.normal(size=(30, 3))
     s = Structure(nodes)
@@ -169,7 +171,7 @@ def test_a_bar_lattice_tangent_from_upper_values_is_the_sum_of_the_full_blocks(m
     s.fix([0, 1, 2])
     system = build_system(s)
     assert any(isinstance(e, AxialBar) for e in system.effects) and any(isinstance(e, Rope) for e in system.effects)
-    assert system._upper is not None
+    assert (system._upper is not None) == rod_compiled.available
     q = s.reference_state() + 0.05 * rng.normal(size=s.n_dof)
     total = sum(dense(e, q) for e in system.effects)
     tol = 1e-13 * np.abs(total).max()
@@ -177,7 +179,17 @@ def test_a_bar_lattice_tangent_from_upper_values_is_the_sum_of_the_full_blocks(m
     assert np.allclose(system.tangent_free(q).toarray(), total[np.ix_(free, free)], rtol=0, atol=tol)
     assert np.allclose(system.tangent(q).toarray(), total, rtol=0, atol=tol)
     bar = next(e for e in system.effects if isinstance(e, AxialBar))
-    assert np.allclose(dense_upper(bar, q), dense(bar, q), rtol=0, atol=tol)
-    part = bar.on_members(np.arange(0, len(bar.conn), 2), np.arange(30), s.n_dof)
-    assert len(part.hessian_upper_pattern()[0]) == 21 * len(part.conn)
-    assert np.allclose(dense_upper(part, q), dense(part, q), rtol=0, atol=tol)
+    g = np.zeros(s.n_dof)
+    compiled_energy = bar._compiled(q, g)
+    assert (compiled_energy is not None) == rod_compiled.available
+    if compiled_energy is not None:  # energy and forces as the NumPy law gives them
+        assert 0.5 * np.sum(compiled_energy) == pytest.approx(super(AxialBar, bar).energy(q), rel=1e-13)
+        np.testing.assert_allclose(g, super(AxialBar, bar).gradient(q), rtol=0, atol=1e-12 * np.abs(g).max())
+        assert np.allclose(dense_upper(bar, q), dense(bar, q), rtol=0, atol=tol)
+        part = bar.on_members(np.arange(0, len(bar.conn), 2), np.arange(30), s.n_dof)
+        assert len(part.hessian_upper_pattern()[0]) == 21 * len(part.conn)
+        assert np.allclose(dense_upper(part, q), dense(part, q), rtol=0, atol=tol)
+    monkeypatch.setattr(AxialBar, "compiled_from", 10**9)  # a small lattice: the NumPy law, full blocks
+    small = build_system(s)
+    assert small._upper is None
+    assert np.allclose(small.tangent_free(q).toarray(), total[np.ix_(free, free)], rtol=0, atol=tol)

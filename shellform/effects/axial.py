@@ -185,6 +185,20 @@ class AxialBar(_AxialMembers):
 
     name = "axial"
 
+    #: members from which the bars' energy, forces and tangent values are compiled (numba). The kernels
+    #: save 1.8 ms per tangent and two residuals at 4,236 bars, 6.2 ms at 17,166, but loading them costs a
+    #: process 0.47 s once (``benchmarks/bench_bar_assembly.py``): from this size about 200 assemblies, a
+    #: path of some 100 Newton iterations, pay it. By size alone, so that a model is assembled the same
+    #: way in every process, whatever ran before.
+    compiled_from = 5000
+
+    def _compiles(self) -> bool:
+        if len(self.L) < self.compiled_from:
+            return False
+        from . import rod_compiled
+
+        return rod_compiled.available
+
     def _dofs_columns(self) -> np.ndarray:
         """The end DOFs by component, (6, m): worked out once per set of members (``on_members`` makes another)."""
         cached = self.__dict__.get("_columns")
@@ -196,9 +210,13 @@ class AxialBar(_AxialMembers):
         """``K`` by its upper triangle on both nodes' diagonal blocks, ``-K`` in full between them (21 entries).
 
         With it the System's tangent takes the bars' values from :meth:`upper_scatter`'s compiled loop,
-        straight into the CSR data: on the 20-ring lattice dome (3,660 bars) 0.2 ms a free tangent against
-        1.7 ms from the full 6 x 6 blocks.
+        straight into the CSR data: on the 40-ring lattice dome (17,166 bars) 1.1 ms a free tangent against
+        5.3 ms from the full 6 x 6 blocks. None below :attr:`compiled_from` members or without numba.
         """
+        # without the compiled loop the upper values gain nothing over the full 6 x 6 blocks
+        return self._upper_pattern() if self._compiles() else None
+
+    def _upper_pattern(self):
         cached = self.__dict__.get("_upper")
         if cached is None or cached[0] is not self.dofs:
             d = self._dofs_columns()
@@ -227,11 +245,11 @@ class AxialBar(_AxialMembers):
         """Twice the energy of every member (m,), its gradient added to ``grad``, compiled
         (:func:`.rod_compiled.stretch_energies`: on the 936 edges of the n = 5 hemisphere 12 us a gradient against
         70 us, 11 us an energy against 36 us); None without numba or for another force law: the NumPy form."""
-        from . import rod_compiled as compiled
-
-        if not compiled.available or type(self)._force is not AxialBar._force \
+        if not self._compiles() or type(self)._force is not AxialBar._force \
                 or type(self)._active is not AxialBar._active:
             return None
+        from . import rod_compiled as compiled
+
         return compiled.stretch_energies(q, self.dofs, self.EA, self.L, grad, absolute)
 
     def energy(self, q):

@@ -32,6 +32,8 @@ class RodStretching(AxialBar):
 
     name = "rod_stretch"
     member_kind = "rod"
+    #: a rod network loads the compiled kernels for its hinges anyway
+    compiled_from = 0
 
     def __init__(self, n_dof: int, connectivity, EA, rest_length):
         super().__init__(n_dof, connectivity, EA, rest_length)
@@ -47,6 +49,11 @@ class RodStretching(AxialBar):
         out = super().on_members(members, node_index, n_dof)
         out._component_major()
         return out
+
+    def hessian_upper_pattern(self):
+        """The bar's upper pattern (:meth:`AxialBar.hessian_upper_pattern`), with or without numba: the rod
+        hinges give theirs, and the stretching's values go with them."""
+        return self._upper_pattern()
 
     def hessian_entries(self, members):
         """Indices into :meth:`hessian_pattern` of the entries of ``members`` (36 each, in block order)."""
