@@ -19,7 +19,6 @@ import os
 import statistics
 import subprocess
 import sys
-import time
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -27,6 +26,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 sys.path.insert(0, os.path.dirname(__file__))
 
 from bench_default_path import apex_loaded_dome  # noqa: E402
+from bench_ldl_backend import median_time  # noqa: E402
 
 from shellform.effects.axial import AxialBar  # noqa: E402
 
@@ -42,15 +42,6 @@ data = np.zeros(22); slots = np.zeros((1, 21), dtype=np.int32)
 c.add_stretch_values(q, dofs, np.ones(1), np.ones(1), data, slots, slots)
 print(time.perf_counter() - t0)
 """
-
-
-def median_time(f, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def main(argv=None):

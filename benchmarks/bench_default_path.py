@@ -36,6 +36,13 @@ def apex_loaded_dome(rings: int):
     return sf.build_system(s)
 
 
+def tangent_past_first_limit(rings: int):
+    """The free tangent of the apex-loaded dome at its located first limit point (one negative eigenvalue)."""
+    system = apex_loaded_dome(rings)
+    event = trace_path(system, "load", stop_after_events=1, max_steps=200).events[0]
+    return system.tangent_free(event.q)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rings", type=int, nargs="+", default=[2, 5, 10, 20, 40, 60])
