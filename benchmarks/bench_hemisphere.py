@@ -125,20 +125,14 @@ def chord_rate_curve(variant: str, n: int, dl: float) -> dict:
 
 def factor_sizes(sizes, dl, repeat=3):
     """Tangent, factorisation and solve times at the pre-stressed state of each n (medians of ``repeat``)."""
-    import statistics
-
     import numpy as np
     import qdldl
+    from bench_ldl_backend import median_time as median_of
 
     from shellform.solvers.factor_base import upper_csc
 
     def median_time(f):
-        times = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            f()
-            times.append(time.perf_counter() - t0)
-        return statistics.median(times)
+        return median_of(f, repeat)
 
     rows = []
     print("| n | DOFs | free | tangent nnz | L nnz | tangent [ms] | fresh LDL^T [ms] | refactorisation [ms] "
