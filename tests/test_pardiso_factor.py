@@ -257,11 +257,11 @@ def grid_laplacian_3d(n, diagonal=2.2):
 
 @needs_pardiso
 def test_auto_sends_a_small_pattern_with_much_fill_to_pardiso_after_its_first_factorisation():
-    """Below MIN_SIZE the fill decides: a 14^3 grid (2,744 unknowns, 2.3e7 multiply-adds by QDLDL) goes to
+    """Below MIN_SIZE the fill decides: an 18^3 grid (5,832 unknowns, 1.3e8 multiply-adds by QDLDL) goes to
     PARDISO from its first factorisation on, whatever ran before; a band matrix of the same size stays."""
     from shellform.solvers import ldl
 
-    A = grid_laplacian_3d(14)
+    A = grid_laplacian_3d(18)
     assert A.shape[0] < pardiso.MIN_SIZE
     ldl._COSTS._items.clear()
     first = LDLFactor(A)

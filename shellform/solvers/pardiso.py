@@ -25,11 +25,16 @@ multiply-adds (the sum over the columns of its ``L`` of ``c (c + 1)``) are
 20-ring lattice dome (3,711 unknowns), where PARDISO takes 3.8 ms against
 QDLDL's 10.2; PARDISO was faster on every pattern measured from 10^7
 multiply-adds up and slower below 5 x 10^6, except the 10-ring dome by
-0.4 ms (``bench_ldl_backend.md``). Below :data:`MIN_SIZE`, ``auto`` therefore
-sends a pattern to PARDISO when QDLDL's factorisation of it costs
-:data:`MIN_MULTIPLY_ADDS` or more, measured once per pattern before any of
-its factors is used (so that a pattern's backend does not depend on what ran
-before it). The whole mode-I indentation curve of the n = 19
+0.4 ms (``bench_ldl_backend.md``). But loading MKL costs a process about
+1 s once: the 20-ring dome's run to its first limit point (10 LDL^T
+factorisations) took 1.2 s in a fresh process with PARDISO against 0.3 s
+with QDLDL, although 0.15 s against 0.18 s once MKL was loaded. The load is
+repaid within a run where a factorisation saves some 20 ms, from about
+5 x 10^7 multiply-adds (the 30-ring dome: 8.4 x 10^7, 33 against 12 ms).
+Below :data:`MIN_SIZE`, ``auto`` therefore sends a pattern to PARDISO when
+QDLDL's factorisation of it costs :data:`MIN_MULTIPLY_ADDS` or more,
+measured once per pattern before any of its factors is used (so that a
+pattern's backend does not depend on what ran before it). The whole mode-I indentation curve of the n = 19
 hemisphere took 16-18 s against 25 s with QDLDL alone, with the same
 thresholds, steps and Newton iterations; n = 39 took 122 s against 948 s.
 
@@ -73,7 +78,8 @@ BACKENDS = ("auto", "qdldl", "pardiso")
 #: ``auto`` uses PARDISO from this many unknowns up (see the module docstring)
 MIN_SIZE = 10_000
 #: ... and below it for a pattern whose QDLDL factorisation costs this many multiply-adds or more
-MIN_MULTIPLY_ADDS = 1.0e7
+#: (see the module docstring: PARDISO is faster from 10^7, but repays MKL's load only from about here)
+MIN_MULTIPLY_ADDS = 5.0e7
 
 #: MKL threads of a PARDISO call. One, like the dense solves under
 #: :func:`~shellform.solvers.factor_base.single_threaded`: the reference machine has two cores, the
