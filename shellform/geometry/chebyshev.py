@@ -129,28 +129,30 @@ def _compass_net(radius: float, delta: float, half: int) -> np.ndarray:
     P[half, :] = R * np.column_stack([np.zeros(size), np.sin(ang), np.cos(ang)])  # v line: yz great circle
     c = 2.0 * R * np.sin(0.5 * delta / R)
     k = R**2 - 0.5 * c**2  # x . A = x . B = k for the rhombus corner x
-    for si in (-1, 1):
-        for sj in (-1, 1):
-            # fill the quadrant along anti-diagonals: every point needs the
-            # two neighbours one step closer to the axes
-            for d in range(2, 2 * half + 1):
-                a = np.arange(max(1, d - half), min(half, d - 1) + 1)
-                i = half + si * a
-                j = half + sj * (d - a)
-                A = P[i - si, j]
-                B = P[i, j - sj]
-                D = P[i - si, j - sj]
-                g = np.einsum("ij,ij->i", A, B)
-                alpha = k / (R**2 + g)
-                AxB = np.cross(A, B)
-                beta2 = (R**2 - alpha**2 * (2 * R**2 + 2 * g)) / np.einsum("ij,ij->i", AxB, AxB)
-                with np.errstate(invalid="ignore"):
-                    beta = np.sqrt(beta2)
-                x1 = alpha[:, None] * (A + B) + beta[:, None] * AxB
-                x2 = alpha[:, None] * (A + B) - beta[:, None] * AxB
-                # the other solution is the old corner D (the rhombus folded back)
-                far1 = np.einsum("ij,ij->i", x1 - D, x1 - D) >= np.einsum("ij,ij->i", x2 - D, x2 - D)
-                P[i, j] = np.where(far1[:, None], x1, x2)
+    # the four quadrants (signs si, sj) filled together along anti-diagonals: every point needs the two
+    # neighbours one step closer to the axes. One pass over the anti-diagonals for all four, not one per
+    # quadrant: the work per anti-diagonal is small, and at n = 11 the four passes took 0.59 s
+    signs = np.array([(-1, -1), (-1, 1), (1, -1), (1, 1)])
+    for d in range(2, 2 * half + 1):
+        a = np.arange(max(1, d - half), min(half, d - 1) + 1)
+        si = np.repeat(signs[:, 0], a.size)
+        sj = np.repeat(signs[:, 1], a.size)
+        i = half + si * np.tile(a, 4)
+        j = half + sj * np.tile(d - a, 4)
+        A = P[i - si, j]
+        B = P[i, j - sj]
+        D = P[i - si, j - sj]
+        g = np.einsum("ij,ij->i", A, B)
+        alpha = k / (R**2 + g)
+        AxB = np.cross(A, B)
+        beta2 = (R**2 - alpha**2 * (2 * R**2 + 2 * g)) / np.einsum("ij,ij->i", AxB, AxB)
+        with np.errstate(invalid="ignore"):
+            beta = np.sqrt(beta2)
+        x1 = alpha[:, None] * (A + B) + beta[:, None] * AxB
+        x2 = alpha[:, None] * (A + B) - beta[:, None] * AxB
+        # the other solution is the old corner D (the rhombus folded back)
+        far1 = np.einsum("ij,ij->i", x1 - D, x1 - D) >= np.einsum("ij,ij->i", x2 - D, x2 - D)
+        P[i, j] = np.where(far1[:, None], x1, x2)
     return P
 
 
