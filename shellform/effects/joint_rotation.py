@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ModelError
+from ..geometry.vectors import cross
 from .base import Effect, element_pattern, scatter
 from .rod_kinematics import skew
 
@@ -39,13 +40,13 @@ def _chords(q: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def crossing_angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The angle between the chords of every crossing, in [0, pi]."""
-    return np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
+    return np.arctan2(np.linalg.norm(cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
 
 
 def angle_derivatives(u: np.ndarray, v: np.ndarray, hessian: bool = True):
     """``phi = atan2(|u x v|, u . v)`` with its gradient (n, 6) and Hessian (n, 6, 6) over ``(u, v)``."""
     n = len(u)
-    w = np.cross(u, v)
+    w = cross(u, v)
     s = np.linalg.norm(w, axis=1)
     c = np.einsum("ij,ij->i", u, v)
     if np.any(s <= 1e-12 * np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)):

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.vectors import cross
 from .rod_hinge import (HingeEffect, binormal_energy_derivatives, binormal_energy_hessian, project_to_edges,
                         stencil_gradient)
 from .rod_material_frame import curvature_binormal_jacobian, material_curvature_term, material_curvature_value
@@ -90,7 +91,7 @@ class RodBending(HingeEffect):
     def _stored_frame(self, edges):
         u = self.frames.director[edges]
         s = self.frames.tangent[edges]
-        return np.stack([u, np.cross(s, u), s], axis=2)
+        return np.stack([u, cross(s, u), s], axis=2)
 
     def _local(self, q, order):
         t0, t1, l0, l1, theta = self._geometry(q)

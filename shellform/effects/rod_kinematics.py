@@ -50,6 +50,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.vectors import cross
+
 # -- elementary vector operations (rows are vectors) ---------------------------------
 
 
@@ -81,14 +83,14 @@ def parallel_transport(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarra
     ``P v = (a.b) v + (a x b) x v + ((a x b).v) (a x b) / (1 + a.b)``; the
     rotation is undefined for ``b = -a`` only.
     """
-    c = np.cross(a, b)
+    c = cross(a, b)
     cos = dot(a, b)
-    return cos[:, None] * v + np.cross(c, v) + (dot(c, v) / (1.0 + cos))[:, None] * c
+    return cos[:, None] * v + cross(c, v) + (dot(c, v) / (1.0 + cos))[:, None] * c
 
 
 def signed_angle(u: np.ndarray, v: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """Angle in (-pi, pi] that rotates ``u`` onto ``v`` about the unit ``axis`` (right hand)."""
-    return np.arctan2(dot(np.cross(u, v), axis), dot(u, v))
+    return np.arctan2(dot(cross(u, v), axis), dot(u, v))
 
 
 def curvature_binormal(t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
@@ -97,12 +99,12 @@ def curvature_binormal(t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
     Its length is ``2 tan(phi / 2)`` with ``phi`` the turning angle between
     the edges; divided by the Voronoi length it approximates the curvature.
     """
-    return 2.0 * np.cross(t0, t1) / (1.0 + dot(t0, t1))[:, None]
+    return 2.0 * cross(t0, t1) / (1.0 + dot(t0, t1))[:, None]
 
 
 def solid_angle(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Signed area of the spherical triangle ``a, b, c`` (unit vectors), in (-2 pi, 2 pi)."""
-    return 2.0 * np.arctan2(dot(a, np.cross(b, c)), 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
+    return 2.0 * np.arctan2(dot(a, cross(b, c)), 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
 
 
 def perpendicular_director(t: np.ndarray) -> np.ndarray:
@@ -136,7 +138,7 @@ def voronoi_lengths(edge_length: np.ndarray, hinge_edges: np.ndarray) -> np.ndar
 
 def material_frames(u: np.ndarray, t: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Material directors ``m1 = cos(theta) u + sin(theta) v``, ``m2 = -sin(theta) u + cos(theta) v``."""
-    v = np.cross(t, u)
+    v = cross(t, u)
     c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
     return c * u + s * v, -s * u + c * v
 

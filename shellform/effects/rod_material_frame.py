@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..geometry.vectors import cross
 from .rod_kinematics import dot, skew
 
 _I3 = np.eye(3)
@@ -41,7 +42,7 @@ class BinormalJacobian(NamedTuple):
 def curvature_binormal_jacobian(t0: np.ndarray, t1: np.ndarray) -> BinormalJacobian:
     """Curvature binormal and its Jacobian with respect to ``(t0, t1)``."""
     chi = 1.0 + dot(t0, t1)
-    kb = 2.0 * np.cross(t0, t1) / chi[:, None]
+    kb = 2.0 * cross(t0, t1) / chi[:, None]
     J = np.empty((len(t0), 3, 6))
     J[:, :, :3] = (-2.0 * skew(t1) - kb[:, :, None] * t1[:, None, :]) / chi[:, None, None]
     J[:, :, 3:] = (2.0 * skew(t0) - kb[:, :, None] * t0[:, None, :]) / chi[:, None, None]

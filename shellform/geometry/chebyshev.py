@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ModelError
+from .vectors import cross
 
 
 @dataclass(frozen=True)
@@ -144,7 +145,7 @@ def _compass_net(radius: float, delta: float, half: int) -> np.ndarray:
         D = P[i - si, j - sj]
         g = np.einsum("ij,ij->i", A, B)
         alpha = k / (R**2 + g)
-        AxB = np.cross(A, B)
+        AxB = cross(A, B)
         beta2 = (R**2 - alpha**2 * (2 * R**2 + 2 * g)) / np.einsum("ij,ij->i", AxB, AxB)
         with np.errstate(invalid="ignore"):
             beta = np.sqrt(beta2)
