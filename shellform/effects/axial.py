@@ -210,11 +210,10 @@ class AxialBar(_AxialMembers):
         """``K`` by its upper triangle on both nodes' diagonal blocks, ``-K`` in full between them (21 entries).
 
         With it the System's tangent takes the bars' values from :meth:`upper_scatter`'s compiled loop,
-        straight into the CSR data: on the 40-ring lattice dome (17,166 bars) 1.1 ms a free tangent against
-        5.3 ms from the full 6 x 6 blocks. None below :attr:`compiled_from` members or without numba.
+        straight into the CSR data: on the 40-ring lattice dome (17,166 bars) 1.0 ms a free tangent against
+        6.2 ms from the full 6 x 6 blocks (``benchmarks/results/bench_bar_assembly.md``). None below :attr:`compiled_from` members or without numba.
         """
-        # without the compiled loop the upper values gain nothing over the full 6 x 6 blocks
-        return self._upper_pattern() if self._compiles() else None
+        return self._upper_pattern() if self._compiles() else None  # without the compiled loop they gain nothing
 
     def _upper_pattern(self):
         cached = self.__dict__.get("_upper")

@@ -40,10 +40,9 @@ class RodStretching(AxialBar):
         self._component_major()
 
     def _component_major(self) -> None:
-        self._dofs_t = self._dofs_columns()  # (6, m)
-        k, m = self._dofs_t.shape
-        self._pattern = (np.broadcast_to(self._dofs_t[:, None, :], (k, k, m)).ravel(),
-                         np.broadcast_to(self._dofs_t[None, :, :], (k, k, m)).ravel())
+        d = self._dofs_columns()  # (6, m)
+        k, m = d.shape
+        self._pattern = (np.broadcast_to(d[:, None, :], (k, k, m)).ravel(), np.broadcast_to(d[None, :, :], (k, k, m)).ravel())
 
     def on_members(self, members, node_index, n_dof):
         out = super().on_members(members, node_index, n_dof)
@@ -62,7 +61,7 @@ class RodStretching(AxialBar):
 
     def hessian_values(self, q):
         """``[[K, -K], [-K, K]]`` with ``K = (EA / L - N / l) n n^T + (N / l) I`` (see :mod:`~shellform.effects.axial`)."""
-        x = q[self._dofs_t]
+        x = q[self._dofs_columns()]
         d = x[3:] - x[:3]
         length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         N, k = self._force(length)

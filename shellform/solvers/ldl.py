@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..sparse_pattern import same_pattern
 from .factor_base import SingularMatrixError, upper_csc
 
 
@@ -30,8 +31,7 @@ class _SymbolicPool:
 
     def take(self, U: sp.csc_matrix):
         for k, (indptr, indices, solver) in enumerate(self._items):
-            if indptr.shape == U.indptr.shape and indices.shape == U.indices.shape and np.array_equal(
-                    indptr, U.indptr) and np.array_equal(indices, U.indices):
+            if same_pattern((indptr, indices), (U.indptr, U.indices)):
                 del self._items[k]
                 return solver
         return None
@@ -64,8 +64,7 @@ class _PatternCosts:
 
     def get(self, U: sp.csc_matrix) -> float | None:
         for indptr, indices, cost in self._items:
-            if indptr.shape == U.indptr.shape and indices.shape == U.indices.shape and np.array_equal(
-                    indptr, U.indptr) and np.array_equal(indices, U.indices):
+            if same_pattern((indptr, indices), (U.indptr, U.indices)):
                 return cost
         return None
 
@@ -235,14 +234,11 @@ class LDLFactor:
             if self._solver is None:
                 raise SingularMatrixError("this LDL^T factor gave its storage to a later factorisation before "
                                           "its pivots were read")
-            self._d = self._checked(np.asarray(self._solver.factors()[1], dtype=float))
+            d = np.asarray(self._solver.factors()[1], dtype=float)
+            if not np.all(np.isfinite(d)) or np.any(d == 0.0):
+                raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
+            self._d = d
         return self._d
-
-    @staticmethod
-    def _checked(d: np.ndarray) -> np.ndarray:
-        if not np.all(np.isfinite(d)) or np.any(d == 0.0):
-            raise SingularMatrixError("LDL^T factorisation met a zero pivot (matrix singular in this ordering)")
-        return d
 
     @d.setter
     def d(self, value) -> None:
