@@ -355,6 +355,26 @@ def test_a_branch_known_stable_is_factorised_by_cholesky_first(monkeypatch):
     np.testing.assert_allclose(stable["displacement"], plain["displacement"], rtol=1e-9, atol=1e-14)
 
 
+def test_without_stability_only_a_cholesky_factor_counts_a_point():
+    """Without stability counting a point's negative eigenvalues are known only where its tangent
+    was factorised by Cholesky (none); past the limit point they are not counted (-1), and the
+    summary does not claim a maximum over the points it did not count."""
+    from test_continuation_models import H, P_CR, von_mises
+
+    from shellform.solvers.continuation import trace_path
+
+    options = dict(initial_increment=P_CR / 10, max_steps=60, max_displacement=0.8 * H)
+    proved = trace_path(von_mises("load"), "load", stability=False, definite_branch=True, **options)
+    counted = trace_path(von_mises("load"), "load", **options)
+    np.testing.assert_allclose(proved["lam"], counted["lam"], rtol=1e-9)
+    assert set(counted["n_negative"]) == {0, 1}
+    np.testing.assert_array_equal(proved["n_negative"], np.where(counted["n_negative"] == 0, 0, -1))
+    assert counted.summary()["max_negative_eigenvalues"] == 1
+    assert proved.summary()["max_negative_eigenvalues"] == -1
+    uncounted = trace_path(von_mises("load"), "load", stability=False, **options)
+    assert set(uncounted["n_negative"]) == {-1}
+
+
 def test_cholesky_is_not_tried_again_within_a_point_after_it_failed(monkeypatch):
     """Past a limit point Cholesky fails; the same point's remaining factorisations go to LDL^T at
     once, the next point (a step, a trial point of the location) tries Cholesky again. The start,

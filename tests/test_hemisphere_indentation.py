@@ -162,3 +162,33 @@ def test_fig7_validation_case_scores_the_trends(tmp_path, monkeypatch):
     assert by_name["mode II: spread of the first snap over n >= 19"].computed == pytest.approx(0.008)
     assert by_name["mode I: maximum force linear in n, R^2"].computed == pytest.approx(1.0)
     assert all((tmp_path / f).exists() for f in res.figures) and len(res.figures) == 4
+
+
+def test_a_point_the_tracer_proved_stable_is_not_counted_again(model, monkeypatch):
+    """A path point whose tangent the tracer factorised by Cholesky is stable: the trace takes that
+    proof instead of counting again after the rod frames follow the point. The same path, snap and
+    threshold as when every point is counted after its frames are accepted."""
+    import shellform.gridshell.indentation as indentation
+    import shellform.solvers.continuation.tracer as tracer
+
+    m, pre = model
+    counted = []
+    count = indentation.negative_count
+    monkeypatch.setattr(indentation, "negative_count", lambda *a: counted.append(1) or count(*a))
+
+    def trace():
+        counted.clear()
+        res = trace_indentation(indentation_system(m, pre, mode="I"), dD_max=1.3 * m.radius, classify=False)
+        return res, len(counted)
+
+    proved, calls = trace()
+    uncounted = tracer.Tracer.count
+    monkeypatch.setattr(tracer.Tracer, "count",
+                        lambda self, K, F=None, signed=False: -1 if not self.o.stability else uncounted(self, K, F, signed))
+    recounted, all_calls = trace()
+    assert proved.success and recounted.success and len(proved.snaps) == len(recounted.snaps) == 1
+    assert calls < all_calls / 3, (calls, all_calls)
+    assert all_calls >= len(recounted.x)
+    np.testing.assert_array_equal(proved.x, recounted.x)
+    np.testing.assert_array_equal(proved.y, recounted.y)
+    assert proved.thresholds == recounted.thresholds

@@ -254,9 +254,14 @@ class _Trace:
         def on_point(pt):
             # carry the rod frames along the path; stop at the first unstable point
             system.accept(pt.q)
-            ts = time.perf_counter()
-            n_neg = negative_count(self.setup, system.tangent_free(pt.q))
-            self.timings["stability"] += time.perf_counter() - ts
+            n_neg = pt.n_negative
+            if n_neg != 0:
+                # not proven stable by the tracer's Cholesky factor of the point's tangent (that
+                # tangent was taken with the rod frames before they were accepted here; at an
+                # equilibrium the two parametrisations give congruent tangents, of the same inertia)
+                ts = time.perf_counter()
+                n_neg = negative_count(self.setup, system.tangent_free(pt.q))
+                self.timings["stability"] += time.perf_counter() - ts
             if n_neg != 0:
                 last["unstable"] = (pt.mu, pt.q.copy(), n_neg)
                 return True

@@ -44,7 +44,9 @@ class PathPoint(PathLocation):
 
     ``residual`` is the norm of the free residual at the point and
     ``tolerance`` what equilibrium asks of it there (``rtol`` times the forces
-    in play at the point, plus ``atol``).
+    in play at the point, plus ``atol``). ``n_negative`` is -1 where it was
+    not counted: everywhere with ``stability`` off, except at points whose
+    tangent a Cholesky factorisation proved positive definite (0).
     """
 
     step: int
@@ -205,7 +207,8 @@ class ContinuationResult:
             "points": int(self.n_points),
             "parameter_range": [float(np.min(t["parameter"])), float(np.max(t["parameter"]))],
             "load_range": [float(np.min(t["load"])), float(np.max(t["load"]))],
-            "max_negative_eigenvalues": int(np.max(t["n_negative"])),
+            # -1 unless every point was counted: a maximum over some points would claim too much
+            "max_negative_eigenvalues": int(np.max(t["n_negative"])) if np.min(t["n_negative"]) >= 0 else -1,
             "events": [e.to_dict() for e in self.events],
             "timings_s": {k: float(v) for k, v in self.timings.items()},
         }

@@ -180,16 +180,19 @@ class Tracer:
     def count(self, K, F=None, signed=False):
         """Negative eigenvalues of ``K``: beyond the zero tolerance, or (``signed``) of any size.
 
+        -1 when not counted: without ``stability`` only a Cholesky factor ``F``
+        gives a count (none, proven by the factor existing).
+
         Along the path a tiny eigenvalue counts as zero so that rounding noise
         next to a critical point is not reported as an event; the bisection
         that locates an event uses the sign of even the tiniest eigenvalue.
         """
+        if isinstance(F, CholeskyFactor):
+            return 0  # a Cholesky factor exists only of a positive definite matrix: counted for free
         if not self.o.stability:
             return -1
         t0 = time.perf_counter()
         try:
-            if isinstance(F, CholeskyFactor):
-                return 0  # a Cholesky factor exists only of a positive definite matrix
             fac = F if isinstance(F, LDLFactor) else None
             I = inertia(K, factor=fac)
             return I.n_below_zero if signed else I.n_negative
