@@ -58,8 +58,10 @@ def correct(tr, u0, p0, du, dp, ds):
     o = tr.o
     max_iter = o.max_iterations
     tr.pb.new_point()
+    tr.corrector_last = None
     complex_roots = 0
     norm0 = previous = None
+    last = None  # the last iteration's linearisation and the increment it was taken at
     for it in range(max_iter + 1):
         u, p = u0 + du, p0 + dp
         R, r, q = tr.pb.residual(u, p)
@@ -67,13 +69,14 @@ def correct(tr, u0, p0, du, dp, ds):
         if not np.isfinite(nR):
             raise StepFailure(f"non-finite residual at corrector iteration {it}")
         eq = equilibrium(tr, nR, r, p, nR if norm0 is None else norm0)
-        if eq.converged:
-            return u, p, q, r, it
         # stalled near the rounding level: no iteration can do better
-        if eq.near_roundoff and (it == max_iter or (previous is not None and nR > 0.1 * previous)):
-            if eq.acceptable_at_roundoff:
-                return u, p, q, r, it
+        stalled = eq.near_roundoff and (it == max_iter or (previous is not None and nR > 0.1 * previous))
+        if stalled and not (eq.converged or eq.acceptable_at_roundoff):
             raise StepFailure(eq.roundoff_failure())
+        if eq.converged or stalled:
+            if last is not None:
+                tr.corrector_last = (u, p, last[0], last[1], last[2], tr.norm(du - last[3], dp - last[4]))
+            return u, p, q, r, it
         previous = nR
         if norm0 is None:
             norm0 = max(nR, 1e-300)
@@ -84,6 +87,7 @@ def correct(tr, u0, p0, du, dp, ds):
         tr.newton_total += 1
         K, g = tr.pb.jacobian(u, p, q)
         F = tr.pb.factor(K)
+        last = (K, g, F, du, dp)
         a = b = None
         if F is not None:
             try:

@@ -100,7 +100,7 @@ def critical_mode(tr, K, F=None) -> tuple[float, np.ndarray]:
     """
     n = K.shape[0]
     if n > DENSE_LIMIT:
-        if not _factor_alive(F):
+        if not factor_alive(F):
             F = tr.pb.factor(K)
         if F is not None:
             try:
@@ -142,7 +142,7 @@ def _probe(tr, kind, pt, u0, p0, sign_A, n_A, sigma) -> _Trial:
     return _Trial(sigma, pt, before, f, tangent, K, F)
 
 
-def _factor_alive(F) -> bool:
+def factor_alive(F) -> bool:
     """Whether a factor can still solve (a later factorisation may have taken its storage)."""
     if F is None:
         return False
@@ -203,7 +203,7 @@ def _end_trial(tr, kind, B, u0, p0, sign_A, n_A, ds_step) -> _Trial:
     F = lin[3] if known else None
     if kind == "limit":
         return _Trial(ds_step, end, False, B.t_dp, (B.t_du, B.t_dp), K, F)
-    if known and _factor_alive(F):
+    if known and factor_alive(F):
         f = eigenvalue_near_zero(K, F)
     else:
         trial = _probe(tr, kind, end, u0, p0, sign_A, n_A, ds_step)
