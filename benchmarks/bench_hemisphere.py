@@ -14,6 +14,10 @@
 
 ``--newton-only`` also runs the segment's implicit Euler with a Newton
 iteration (tangent and factorisation) in every step (``keep_factor=False``).
+``--snap-newton 25 40 60 100 [--sizes 5 7 9 11] [--modes I II] [--repeat 1]`` traces whole
+curves with the snap dynamics' Newton iterations per time step capped at each value
+(``SettleOptions.max_newton``), in fresh processes, and tables the dynamics' steps,
+rejected steps and iterations with the thresholds.
 ``--factor-sizes 5 11 19 29 39 49`` times, at the pre-stressed state of each n, one rod
 tangent assembly, one LDL^T factorisation (fresh and numeric refactorisation on the kept
 analysis) and one solve, with the factor's fill: what one Newton iteration costs as the net
@@ -180,6 +184,62 @@ def chord_rates(variants, sizes, dl, repeat):
               f"{', '.join(f'{t:.4f}' for t in rs[0]['thresholds'])} |", flush=True)
 
 
+def snap_newton_curve(cap: int, n: int, dl: float, mode: str) -> dict:
+    """The whole curve with the snap dynamics' Newton iterations per time step capped at ``cap``."""
+    import functools
+
+    import shellform.gridshell.indentation as indentation
+    import shellform.solvers.implicit_euler as ie
+    import shellform.solvers.implicit_step as steps
+
+    indentation.SettleOptions = functools.partial(indentation.SettleOptions, max_newton=cap)
+    dynamics = {"iterations": 0, "rejected": 0, "steps": 0, "largest": 0}
+    integrate, descend = ie.implicit_euler, steps.Stepper._descend
+
+    def descent(*args):
+        dynamics["iterations"] += 1  # one Newton iteration of a time step, rejected ones included
+        return descend(*args)
+
+    def counted(*args, **kwargs):
+        res = integrate(*args, **kwargs)
+        dynamics["rejected"] += res.rejected_steps
+        dynamics["steps"] += res.steps
+        dynamics["largest"] = max([dynamics["largest"], *res.newton_iterations])
+        return res
+
+    ie.implicit_euler, steps.Stepper._descend = counted, descent
+    model = build_hemisphere(HemisphereSpec(n, voronoi_length=dl))
+    setup = indentation_system(model, prestress_on_net(model), mode=mode)
+    t0 = time.perf_counter()
+    res = trace_indentation(setup)
+    return {"cap": cap, "n": n, "mode": mode, "trace_s": time.perf_counter() - t0, "thresholds": list(res.thresholds),
+            "max_force": res.max_force, **dynamics}
+
+
+def snap_newton(caps, sizes, modes, dl, repeat):
+    """Whole curves at each cap, each in its own process (alternating); the table of the snap dynamics."""
+    import statistics
+    import subprocess
+    import sys
+
+    runs = {}
+    for _ in range(repeat):
+        for n in sizes:
+            for mode in modes:
+                for cap in caps:
+                    out = subprocess.run([sys.executable, __file__, "--one-snap-newton", str(cap), mode, "--n", str(n),
+                                          "--dl", str(dl)], capture_output=True, text=True, check=True)
+                    runs.setdefault((n, mode, cap), []).append(json.loads(out.stdout.splitlines()[-1]))
+    print("| n | mode | Newton iterations per step at most | trace [s] (median) | dynamics: steps | rejected | "
+          "Newton iterations (rejected steps' included) | most in an accepted step | thresholds dD/R | maximum force |")
+    print("|---:|---|---:|---:|---:|---:|---:|---:|---|---:|")
+    for (n, mode, cap), rs in runs.items():
+        r = rs[0]
+        print(f"| {n} | {mode} | {cap} | {statistics.median(x['trace_s'] for x in rs):.2f} | {r['steps']} | "
+              f"{r['rejected']} | {r['iterations']} | {r['largest']} | "
+              f"{', '.join(f'{t:.5f}' for t in r['thresholds'])} | {r['max_force']:.4f} |", flush=True)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", type=int, default=11)
@@ -194,12 +254,23 @@ def main(argv=None):
     p.add_argument("--sizes", type=int, nargs="+", default=[5, 11], help="n of the --chord-rates curves")
     p.add_argument("--repeat", type=int, default=2, help="runs of each --chord-rates variant")
     p.add_argument("--one-chord-rate", default=None, help=argparse.SUPPRESS)
+    p.add_argument("--snap-newton", type=int, nargs="+", default=None,
+                   help="whole curves with the snap dynamics' Newton iterations per time step capped at these")
+    p.add_argument("--modes", nargs="+", default=["I", "II"], help="modes of the --snap-newton curves")
+    p.add_argument("--one-snap-newton", nargs=2, default=None, help=argparse.SUPPRESS)
     p.add_argument("--factor-sizes", type=int, nargs="+", default=None,
                    help="time one tangent, factorisation and solve at each of these n instead")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
     args = p.parse_args(argv)
     if args.one_chord_rate is not None:
         print(json.dumps(chord_rate_curve(args.one_chord_rate, args.n, args.dl * 1e-3)))
+        return {}
+    if args.one_snap_newton is not None:
+        print(json.dumps(snap_newton_curve(int(args.one_snap_newton[0]), args.n, args.dl * 1e-3,
+                                           args.one_snap_newton[1])))
+        return {}
+    if args.snap_newton:
+        snap_newton(args.snap_newton, args.sizes, args.modes, args.dl, args.repeat)
         return {}
     if args.chord_rates:
         chord_rates(args.chord_rates, args.sizes, args.dl, args.repeat)

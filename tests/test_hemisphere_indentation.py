@@ -192,3 +192,18 @@ def test_a_point_the_tracer_proved_stable_is_not_counted_again(model, monkeypatc
     np.testing.assert_array_equal(proved.x, recounted.x)
     np.testing.assert_array_equal(proved.y, recounted.y)
     assert proved.thresholds == recounted.thresholds
+
+
+def test_the_snap_dynamics_take_as_many_newton_iterations_as_a_step_through_a_snap_needs(model, monkeypatch):
+    """A time step through a snap is nearly an energy descent of its own (up to 48 Newton iterations
+    at 1 mm): the snap dynamics allow 60 before a step is rejected and halved, which would
+    discretise the snap differently and move where it lands."""
+    import shellform.solvers.implicit_euler as ie
+
+    m, pre = model
+    caps = []
+    integrate = ie.implicit_euler
+    monkeypatch.setattr(ie, "implicit_euler", lambda *a, **k: caps.append(k["max_newton"]) or integrate(*a, **k))
+    res = trace_indentation(indentation_system(m, pre, mode="I"), dD_max=1.3 * m.radius, classify=False)
+    assert res.success and len(res.snaps) == 1
+    assert caps and set(caps) == {60}

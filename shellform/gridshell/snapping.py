@@ -55,12 +55,12 @@ def lowest_mode(K) -> np.ndarray | None:
 
 
 def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, t_max: float,
-                     first_step: float | None = None, hold_after_reject: int = 0):
+                     first_step: float | None = None, hold_after_reject: int = 0, max_newton: int = 25):
     """Let the structure move from ``q`` under damped implicit Euler dynamics until it is nearly at rest.
 
     This is the paper's own way through a snap (inertia and damping carry the
-    structure to the next stable state). ``first_step`` and
-    ``hold_after_reject`` are those of
+    structure to the next stable state). ``first_step``,
+    ``hold_after_reject`` and ``max_newton`` are those of
     :class:`~shellform.solvers.implicit_euler.ImplicitEulerOptions`. Returns
     the last state, or ``q`` when no time integrator is available.
     """
@@ -76,7 +76,8 @@ def dynamic_step_out(setup, q: np.ndarray, mu: float, h: float, damping: float, 
         return static <= 1e-7 * scale
 
     res = implicit_euler(system, h, t_max, q0=q, mass=mass, damping=damping, mu=mu, stop=stop,
-                         linear_solver=LINEAR_SOLVER, first_step=first_step, hold_after_reject=hold_after_reject)
+                         linear_solver=LINEAR_SOLVER, first_step=first_step, hold_after_reject=hold_after_reject,
+                         max_newton=max_newton)
     return res.q, int(sum(res.newton_iterations))
 
 
@@ -110,6 +111,17 @@ class SettleOptions:
     hold_after_reject : int
         Accepted steps at a reduced size, after a failed one, before the
         step grows again (a size that has just failed fails again).
+    max_newton : int
+        Newton iterations of one time step before it is rejected and
+        halved. The mass of a gridshell is small against its stiffness at
+        these time steps, so a step through a snap is nearly an energy
+        descent of its own, and takes up to 48 iterations (n = 5 to 11,
+        modes I and II) while still descending. Capped at 25, 2 to 7 steps
+        per curve were rejected with their work done, 20 to 60 % more
+        factorisations were needed, and the halved steps discretised the
+        snap differently: a later threshold moved by up to 2e-3 R, and at
+        n = 9 in mode II an extra snap appeared
+        (``benchmarks/bench_hemisphere.py --snap-newton``).
     """
 
     amplitude: float
@@ -122,6 +134,7 @@ class SettleOptions:
     t_max: float = 0.5
     first_step: float = 0.125
     hold_after_reject: int = 3
+    max_newton: int = 60
 
 
 def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, options: SettleOptions):
@@ -157,11 +170,11 @@ def settle(setup, q0: np.ndarray, mu: float, mode_free: np.ndarray | None, optio
                 return res.q, iterations, "stable"
             setup.model.network.frames.restore(frames)
             q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max,
-                                      o.first_step * o.time_step, o.hold_after_reject)
+                                      o.first_step * o.time_step, o.hold_after_reject, o.max_newton)
             iterations += its
         elif o.method == "dynamic":
             q, its = dynamic_step_out(setup, q, mu, o.time_step, o.damping, o.t_max,
-                                      o.first_step * o.time_step, o.hold_after_reject)
+                                      o.first_step * o.time_step, o.hold_after_reject, o.max_newton)
             iterations += its
         # descend in rounds, accepting the state in between: a snap can turn rod
         # edges far from the stored frames, and the frames must follow
