@@ -207,3 +207,26 @@ def test_the_snap_dynamics_take_as_many_newton_iterations_as_a_step_through_a_sn
     res = trace_indentation(indentation_system(m, pre, mode="I"), dD_max=1.3 * m.radius, classify=False)
     assert res.success and len(res.snaps) == 1
     assert caps and set(caps) == {60}
+
+
+def test_the_force_before_a_snap_is_read_at_the_critical_state_with_its_own_rod_frames(model, monkeypatch):
+    """The rods' twist angles are measured from the frames of the last accepted state: after a snap has
+    turned them, the critical state's vector describes other twists and another force."""
+    import shellform.gridshell.indentation as indentation
+
+    m, pre = model
+    setup = indentation_system(m, pre, mode="I")
+    expected = []
+    critical_point = indentation._Trace.critical_point
+
+    def recorded(self, res, last):
+        out = critical_point(self, res, last)
+        expected.append((out[0], setup.force(out[1]) / setup.force_scale))
+        return out
+
+    monkeypatch.setattr(indentation._Trace, "critical_point", recorded)
+    res = trace_indentation(setup, dD_max=1.8 * m.radius, classify=False)
+    events = {e.dD: e for e in res.snaps + res.exchanges}
+    assert res.success and len(res.snaps) == 2 and len(events) == len(expected)
+    for dD, f_c in expected:
+        assert events[dD].force_before == pytest.approx(f_c, rel=1e-12)

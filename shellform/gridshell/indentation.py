@@ -256,9 +256,11 @@ class _Trace:
             system.accept(pt.q)
             n_neg = pt.n_negative
             if n_neg != 0:
-                # not proven stable by the tracer's Cholesky factor of the point's tangent (that
-                # tangent was taken with the rod frames before they were accepted here; at an
-                # equilibrium the two parametrisations give congruent tangents, of the same inertia)
+                # not proven stable by the tracer's Cholesky factor of the point's tangent. That tangent
+                # was taken with the rod frames before they were accepted here (at an equilibrium the two
+                # parametrisations give congruent tangents, of the same inertia), and may be the
+                # corrector's last, a last correction away: only a critical point within that distance
+                # could be passed by one point, and is then located next to it
                 ts = time.perf_counter()
                 n_neg = negative_count(self.setup, system.tangent_free(pt.q))
                 self.timings["stability"] += time.perf_counter() - ts
@@ -318,13 +320,15 @@ class _Trace:
                 return q_new, mu_new, why
         return None, mu_new, why
 
-    def record_snap(self, mu_c, q_c, kind, located, q_new, mu_new):
-        """Record what happened at the critical point: a snap, a merged snap or an exchange of stability."""
+    def record_snap(self, mu_c, q_c, f_c, kind, located, q_new, mu_new):
+        """Record what happened at the critical point: a snap, a merged snap or an exchange of stability.
+
+        ``f_c`` is the force at the critical state ``q_c``, computed before the snap moved the rod frames.
+        """
         o, setup, model = self.o, self.setup, self.model
         x_c, x_new = model.positions(q_c), model.positions(q_new)
         jump = float(np.abs(x_new - x_c).max() / self.R)
         before = classify_configuration(model, q_c) if o.classify else ""
-        f_c = setup.force(q_c)
         event = Snap(mu_c, mu_c / self.R, f_c / setup.force_scale, setup.force(q_new) / setup.force_scale, kind,
                      located, before, "", jump)
         f_new = setup.force(q_new)
@@ -371,11 +375,15 @@ class _Trace:
             if losses > self.o.max_snaps:
                 return True, f"stopped after {self.o.max_snaps} losses of stability at dD/R = {last['stable'][0] / self.R:.4g}"
             mu_c, q_c, kind, located, mode_free = self.critical_point(res, last)
+            # the rods' twist angles are measured from the reference frames of the last accepted state:
+            # the critical state's force is read with the frames of the path next to it, before the
+            # snap turns them (after it, the same state vector describes other twists, other forces)
+            f_c = self.setup.force(q_c)
             q_new, mu_new, why = self.beyond(mu_c, q_c, mode_free)
             if q_new is None:
                 return False, f"no stable state found beyond the critical point at dD/R = {mu_c / self.R:.4g}: {why}"
             self.system.accept(q_new)
-            self.record_snap(mu_c, q_c, kind, located, q_new, mu_new)
+            self.record_snap(mu_c, q_c, f_c, kind, located, q_new, mu_new)
             if mu_new >= self.dD_max:
                 return True, f"reached dD/R = {mu_new / self.R:.4g}"
 

@@ -46,7 +46,10 @@ class PathPoint(PathLocation):
     ``tolerance`` what equilibrium asks of it there (``rtol`` times the forces
     in play at the point, plus ``atol``). ``n_negative`` is -1 where it was
     not counted: everywhere with ``stability`` off, except at points whose
-    tangent a Cholesky factorisation proved positive definite (0).
+    tangent a Cholesky factorisation proved positive definite (0; without
+    ``stability`` that tangent may be the corrector's last one, a last
+    correction away from the point, see ``REUSE_DISTANCE`` in
+    :mod:`~shellform.solvers.continuation.tracer`).
     """
 
     step: int
