@@ -672,12 +672,12 @@ NOTES = [
     "paper integrates the Gauss equation and does not state its spacing), the paper's dynamic runs "
     "possibly staying on the symmetric branch past the smooth shear bifurcation before they jump, and "
     "the published values being read from figures.",
-    "* Mode II, S pattern. For n >= 7 our path passes through S between W and O- (W -> S at dD/R "
-    "1.71-1.74, then S -> O- at 1.82: the extra snap in the table). The paper reports W -> O- directly at "
-    "1.75 and no S in mode II. Our W -> S threshold is the one that matches 1.75; the S state survives only "
-    "about 0.1 R of further indentation. The damping of the snap dynamics (1, 10 and 100 1/s tried on "
-    "n = 11 at 2 mm) does not change where the snap lands. The clamp is six nodes within 1 mm of the apex, "
-    "as in the paper.",
+    "* Mode II, S pattern. For n = 7 and 11, and 19 to 49, our path passes through S between W and O- "
+    "(W -> S at dD/R 1.71-1.76, then S -> O- at 1.81-1.85: the extra snap in the tables). The paper reports "
+    "W -> O- directly at 1.75 and no S in mode II; so do our paths for n = 5 and 9, and for n = 11 at 1.5 and "
+    "2 mm. Where the snap from W lands is decided by the dynamics through it, and the two stable states are "
+    "close: our W -> S threshold is the one that matches 1.75, and the S state survives only about 0.1 R of "
+    "further indentation. The clamp is six nodes within 1 mm of the apex, as in the paper.",
     "* The paper names its configurations only in figures we do not have; the labels here are our "
     "reading (see `shellform.gridshell.indentation.classify_configuration`): U+/U- dome and inverted "
     "dome, O+/O- a ring-shaped crest/trough around the apex, W the state that has lost its mirror "
@@ -686,16 +686,14 @@ NOTES = [
     "that in mode I the change O+ -> W is smooth and the first snap is W -> W, and the S of mode II above.",
     "* Trends: the first-snap threshold increases slightly with n (mode II monotonically, 1.43 to 1.51); "
     "the maximum force grows linearly with n (R^2 above 0.999 in both modes), as published.",
-    "* Fig. 7 study: the sizes were run one process per mode with other work on the same 2 cores (load "
-    "average 4 to 6), so their wall times are two to three times those of a quiet machine; n = 5..29 ran "
-    "before the stability counts went to Cholesky first (same thresholds to 1e-3 at n = 5, 11 and 19). "
-    "From n = 19 on a curve's cost is its factorisations (about 680 LDL^T ones), whose cost grows much faster "
-    "than the unknowns: the joints every h = pi R/(n+1) make the net an ever denser surface "
+    "* Fig. 7 study: n = 5 to 25 ran in one process and n = 29 to 49 in another beside it on the 2 cores, "
+    "with the optional MKL PARDISO LDL^T (`pip install \"shellform[pardiso]\"`; without it n = 39 and 49 "
+    "take hours). From n = 19 on a curve's cost is its factorisations, whose cost grows much faster than "
+    "the unknowns: the joints every h = pi R/(n+1) make the net an ever denser surface "
     "(`benchmarks/results/bench_hemisphere_sizes.md`).",
-    "* Cost: the Voronoi length barely matters for the thresholds (at most 0.026 in dD/R between 2 mm and "
-    "0.5 mm, at most 0.008 between 1 mm and 0.5 mm), while halving it from 1 mm to 0.5 mm multiplies the "
-    "wall time by 3 to 15: most of the extra time goes into the Newton iterations of the damped dynamics "
-    "that carry the structure through each snap (profiled on n = 5 at 0.5 mm: two thirds of the time).",
+    "* Cost: the Voronoi length barely matters for the thresholds (at most 0.017 in dD/R between 2 mm and "
+    "0.5 mm where the same snaps occur, at most 0.008 between 1 mm and 0.5 mm), while halving it from 1 mm "
+    "to 0.5 mm multiplies the wall time by 1.5 to 3.",
 ]
 
 
