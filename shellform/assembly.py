@@ -17,12 +17,14 @@ structure) are ``r[constrained]``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import contextmanager
+
 import numpy as np
 import scipy.sparse as sp
 
 from .effects import AxialBar, Effect, Rope, gravity_effect, nodal_load_effects
 from .effects.sliding import sliding_effects
-from .errors import ModelError
+from .errors import CheckpointMismatch, ModelError
 from .model import Structure
 from .sparse_pattern import Pattern, same_pattern
 from .upper_tangent import UpperTangent
@@ -338,6 +340,56 @@ class System:
             if hook is not None:
                 hook(q)
 
+    # -- path history ---------------------------------------------------------------------
+    def history_objects(self) -> list:
+        """The objects that carry the path's history (the rods' reference frames), each once.
+
+        A rod's twist angles are measured from reference frames carried along
+        the accepted states, so a state vector means a configuration only
+        together with the frames it was found with.
+        """
+        objs, seen = [], set()
+        for e in self.effects:
+            f = getattr(e, "frames", None)
+            if f is not None and hasattr(f, "state") and hasattr(f, "restore") and id(f) not in seen:
+                seen.add(id(f))
+                objs.append(f)
+        return objs
+
+    def history(self):
+        """A copy of the path's history as accepted so far (None when no effect keeps one)."""
+        objs = self.history_objects()
+        return tuple(o.state() for o in objs) if objs else None
+
+    def restore_history(self, saved) -> None:
+        """Return to a history saved by :meth:`history` (None: nothing to restore)."""
+        if saved is None:
+            return
+        objs = self.history_objects()
+        if len(saved) != len(objs):
+            raise ModelError(f"a saved path history of {len(saved)} objects cannot be restored on a system "
+                             f"with {len(objs)}")
+        for o, state in zip(objs, saved):
+            o.restore(state)
+
+    @contextmanager
+    def evaluated_with(self, saved):
+        """Evaluate states with the path history ``saved`` (from :meth:`history`), then put the current one back.
+
+        What a stored state of a rod model is (its twists, torques, reactions)
+        depends on the frames it was found with, not on those of the end of
+        the run.
+        """
+        if saved is None:
+            yield self
+            return
+        now = self.history()
+        self.restore_history(saved)
+        try:
+            yield self
+        finally:
+            self.restore_history(now)
+
     def member_results(self, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
         """Per-member output of every effect that reports any, keyed by effect label."""
         out = {}
@@ -371,3 +423,30 @@ def build_system(structure: Structure, gravity_scaled: bool = False, check: bool
     if structure.gravity is not None:
         effects.append(gravity_effect(structure, scales_with_load=gravity_scaled))
     return System(structure, effects, check=check)
+
+
+def stack_histories(prefix: str, histories: list) -> dict[str, np.ndarray]:
+    """Path histories (``System.history()`` of each of a run's states) as stacked arrays ``{prefix}{k}_{name}``.
+
+    Nothing when there are none (no rods).
+    """
+    if not histories or histories[0] is None:
+        return {}
+    return {f"{prefix}{k}_{name}": np.stack([h[k][name] for h in histories])
+            for k in range(len(histories[0])) for name in histories[0][k]}
+
+
+def unstack_histories(arrays, prefix: str, count: int, path) -> list:
+    """The histories of :func:`stack_histories` back, one per state (None each when none were saved)."""
+    names = getattr(arrays, "files", None) or list(arrays)
+    fields: dict[int, list[str]] = {}
+    for key in names:
+        if key.startswith(prefix):
+            k, name = key[len(prefix):].split("_", 1)
+            fields.setdefault(int(k), []).append(name)
+    if not fields:
+        return [None] * count
+    if sorted(fields) != list(range(len(fields))):
+        raise CheckpointMismatch(f"checkpoint {path}: its saved rod frames ({prefix}) miss an object")
+    return [tuple({name: np.array(arrays[f"{prefix}{k}_{name}"][i]) for name in fields[k]} for k in range(len(fields)))
+            for i in range(count)]

@@ -230,3 +230,84 @@ def test_the_force_before_a_snap_is_read_at_the_critical_state_with_its_own_rod_
     assert res.success and len(res.snaps) == 2 and len(events) == len(expected)
     for dD, f_c in expected:
         assert events[dD].force_before == pytest.approx(f_c, rel=1e-12)
+
+
+def test_a_stored_state_is_written_with_the_rod_frames_it_was_found_with(model, monkeypatch):
+    """A rod state's twist angles are measured from the frames of the state accepted before it: the
+    torques, moments and reactions of every stored state are written as they were when it was found,
+    not with the frames the end of the run left (which gave reactions off by a factor of up to 7)."""
+    import shellform.gridshell.indentation as indentation
+    from shellform.io import state_mesh
+
+    m, pre = model
+    setup = indentation_system(m, pre, mode="I")
+    found = []
+    add_point = indentation._Trace.add_point
+
+    def recorded(self, q, mu, n_neg):
+        found.append(state_mesh(self.system, q))
+        return add_point(self, q, mu, n_neg)
+
+    monkeypatch.setattr(indentation._Trace, "add_point", recorded)
+    res = trace_indentation(setup, dD_max=1.3 * m.radius, classify=False, store_states=True)
+    assert res.success and len(res.snaps) == 1 and len(found) == len(res.path_states) == len(res.path_histories)
+    stale = 0.0
+    for mesh, q, history in zip(found, res.path_states, res.path_histories):
+        written = state_mesh(setup.system, q, history=history)
+        for name in ("torque", "bending_moment_1", "bending_moment_2", "twist_rate"):
+            np.testing.assert_array_equal(written.cell_data[name][0], mesh.cell_data[name][0])
+        np.testing.assert_array_equal(written.point_data["reaction"], mesh.point_data["reaction"])
+        now = state_mesh(setup.system, q).point_data["reaction"]
+        stale = max(stale, float(np.abs(now - mesh.point_data["reaction"]).max()))
+    assert stale > 1e-3 * max(float(np.abs(f.point_data["reaction"]).max()) for f in found)
+    # the selected states too, each with its own frames; the run's own frames are left as they were
+    end = setup.system.history()
+    assert set(res.state_histories) == set(res.states)
+    for x, q in res.states.items():
+        state_mesh(setup.system, q, history=res.state_histories[x])
+    for a, b in zip(setup.system.history(), end):
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+
+
+def test_a_traced_path_keeps_each_state_with_its_rod_frames_through_a_checkpoint(model, tmp_path):
+    """The continuation's stored states and its events' states come with the rod frames they were
+    found with; a checkpoint carries them, so a resumed run writes what an uninterrupted one does."""
+    from shellform.io import state_mesh
+    from shellform.io.checkpoint import CheckpointFile
+    from shellform.solvers.continuation import trace_path
+
+    m, pre = model
+    setup = indentation_system(m, pre, mode="I")
+    options = dict(q0=setup.system.q_ref, initial_increment=0.02 * m.radius, parameter_bounds=(0.0, 0.3 * m.radius),
+                   store_states=True, stability=False, max_steps=40)
+    found = []
+
+    def at_point(pt):
+        found.append(state_mesh(setup.system, pt.q))
+
+    m.network.frames.restore(setup.frames_state)
+    res = trace_path(setup.system, "displacement", callback=at_point, **options)
+    assert res.success and len(res.states) == len(res.state_histories) == len(found) > 5
+    stale = 0.0
+    for mesh, q, history in zip(found, res.states, res.state_histories):
+        written = state_mesh(setup.system, q, history=history)
+        np.testing.assert_array_equal(written.cell_data["torque"][0], mesh.cell_data["torque"][0])
+        np.testing.assert_array_equal(written.point_data["reaction"], mesh.point_data["reaction"])
+        stale = max(stale, float(np.abs(state_mesh(setup.system, q).point_data["reaction"]
+                                        - mesh.point_data["reaction"]).max()))
+    assert stale > 0.0
+    # stopped at step 6 after a checkpoint at step 5, then resumed: the same states with the same frames
+    m.network.frames.restore(setup.frames_state)
+    ck = tmp_path / "path.npz"
+    with pytest.raises(RuntimeError):
+        trace_path(setup.system, "displacement", checkpoint=CheckpointFile(ck, every=5),
+                   callback=lambda pt: (_ for _ in ()).throw(RuntimeError("stop")) if pt.step == 6 else None,
+                   **options)
+    m.network.frames.restore(setup.frames_state)
+    resumed = trace_path(setup.system, "displacement", checkpoint=CheckpointFile(ck, every=5, resume=True), **options)
+    assert len(resumed.states) == len(res.states)
+    for mesh, q, history in zip(found, resumed.states, resumed.state_histories):
+        written = state_mesh(setup.system, q, history=history)
+        np.testing.assert_allclose(written.point_data["reaction"], mesh.point_data["reaction"],
+                                   atol=1e-9 * float(np.abs(mesh.point_data["reaction"]).max()))

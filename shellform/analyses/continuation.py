@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import scene as scenes
 from ..io import write_json, write_mode, write_series
+from ..io.mesh import evaluated_with
 from ..io.table import PathPlot, plot_path, write_path_csv
 from ..model import AXES
 from ..progress import Progress, Status, indented
@@ -117,7 +118,7 @@ def write_path_files(result, system, out: Path, files: PathFiles, progress: Prog
     summary = result.summary()
     for number, (event, record) in enumerate(zip(result.events, summary["events"]), start=1):
         written.append(write_mode(out / f"{name}_critical_{number}.vtu", system, event.q, event.mode,
-                                  event.lam).name)
+                                  event.lam, history=event.history).name)
         record.update(number=number, file=written[-1])
     summary["files"] = written + [f"{name}_events.json", f"{name}_checkpoint.npz"]
     # the outcome is on disk before the plot is drawn
@@ -151,7 +152,9 @@ def write_path_series(path: Path, system, result, load_factor: float) -> str:
     lam = [v if np.isfinite(v) else load_factor for v in column("lam")]
     name, times = series_time(("path parameter", column("parameter")), ("arc length", column("arc_length")),
                               ("step", result.state_steps))
-    write_series(path, system, list(zip(times, result.states, lam)), time_name=name)
+    # each state with the rod frames it was found with
+    histories = result.state_histories or [None] * len(result.states)
+    write_series(path, system, list(zip(times, result.states, lam, histories)), time_name=name)
     return name
 
 
@@ -220,8 +223,12 @@ def trace_model(scene: dict, model, out: Path, progress: Progress, resume: bool 
         progress(f"  {e.kind} point at parameter {e.parameter:.6g}, load {e.load:.6g} (step {e.step})")
     lam_of = dict(zip(res.table["step"], res.table["lam"]))
     time_name = write_path_series(out / "path.xdmf", system, res, a["load_factor"])
-    final = write_final_state(scene, out, system, res.states[-1], lam_of.get(res.state_steps[-1], a["load_factor"]),
-                         [f for f in scene["output"]["formats"] if f != "xdmf"]) if res.states else []
+    final = []
+    if res.states:
+        with evaluated_with(system, res.state_histories[-1] if res.state_histories else None):
+            final = write_final_state(scene, out, system, res.states[-1],
+                                      lam_of.get(res.state_steps[-1], a["load_factor"]),
+                                      [f for f in scene["output"]["formats"] if f != "xdmf"])
     summary = {"analysis": "continuation", "converged": bool(res.success), **path_summary,
                **model_sizes(structure, system)}
     summary["files"] = path_summary["files"] + ["path.xdmf", "path.h5"] + final

@@ -9,16 +9,15 @@ from pathlib import Path
 import numpy as np
 
 from .. import scene as scenes
-from ..errors import SceneError
-from ..io import write_series
-from ..errors import CheckpointMismatch
+from ..assembly import stack_histories, unstack_histories
+from ..errors import CheckpointMismatch, SceneError
 from ..fingerprint import check_fingerprint, fingerprint_record, model_fingerprint
+from ..io import write_series
 from ..io.checkpoint import load_checkpoint, save_checkpoint
 from ..io.table import plot_curve, write_csv
 from ..model import AXES
 from ..progress import Progress
-from .common import build_scene_model, plot_or_note, model_sizes, write_final_state
-
+from .common import build_scene_model, model_sizes, plot_or_note, write_final_state
 
 DYNAMICS_CHECKPOINT = "dynamics_checkpoint.npz"
 
@@ -63,13 +62,23 @@ class _History:
                           self.fingerprint, self.settings)
         self.step = int(saved["step"])
         self.table = {c: list(saved[f"history_{c}"]) for c in self.columns}
-        self.frames = [(float(t), q, self.lam(float(t))) for t, q in zip(saved["frame_t"], saved["frame_q"])]
+        histories = unstack_histories(saved, "frame_history", len(saved["frame_t"]), self.path)
+        self.frames = [(float(t), q, self.lam(float(t)), h)
+                       for t, q, h in zip(saved["frame_t"], saved["frame_q"], histories)]
+        # the rod frames the saved state was found with: the motion goes on from them
+        frames = unstack_histories(saved, "state_frames", 1, self.path)[0]
+        if frames is None and self.system.history() is not None:
+            raise CheckpointMismatch(f"{self.path} was written without the rods' reference frames, which a rod "
+                                     "state needs to be taken up: delete it or run without --resume")
+        self.system.restore_history(frames)
         return float(saved["t"]), saved["q"], saved["v"]
 
     def save(self, t, q, v):
         save_checkpoint(self.path, t=t, q=q, v=v, step=self.step,
                         fingerprint=fingerprint_record(self.fingerprint, self.settings),
                         frame_t=[f[0] for f in self.frames], frame_q=np.array([f[1] for f in self.frames]),
+                        **stack_histories("frame_history", [f[3] for f in self.frames]),
+                        **stack_histories("state_frames", [self.system.history()]),
                         **{f"history_{c}": np.asarray(self.table[c]) for c in self.columns})
         self.last_save = time.perf_counter()
 
@@ -88,7 +97,7 @@ class _History:
         for c, value in zip(self.columns, row):
             self.table[c].append(value)
         if count and self.step % self.output_every == 0:
-            self.frames.append((t, q.copy(), self.lam(t)))
+            self.frames.append((t, q.copy(), self.lam(t), self.system.history()))
         if time.perf_counter() - self.last_save >= self.interval:
             self.save(t, q, v)
             return True
@@ -123,7 +132,7 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
     else:
         if resume:
             progress(f"no checkpoint in {out}: starting at t = 0")
-        hist.frames = [(0.0, q0.copy(), lam(0.0))]
+        hist.frames = [(0.0, q0.copy(), lam(0.0), system.history())]
         hist.record(t0, q0, np.zeros_like(q0), count=False)
     progress(f"time stepping: {n} nodes, {system.n_free} free DOFs, h = {d['time_step']} s up to "
              f"t = {d['duration']} s, damping {d['damping']} 1/s")
@@ -140,7 +149,7 @@ def run_dynamics(scene: dict, out: Path, progress: Progress, resume: bool = Fals
     progress(message)
     hist.save(t_end, q_end, v_end if v_end is not None else np.zeros_like(q_end))
     if hist.frames[-1][0] != t_end:
-        hist.frames.append((t_end, q_end.copy(), lam(t_end)))
+        hist.frames.append((t_end, q_end.copy(), lam(t_end), system.history()))
     files, notes = _write_history(scene, out, system, hist, q_end, lam(t_end))
     r = system.residual(q_end, lam(t_end))
     summary = {

@@ -80,20 +80,24 @@ def run_indentation(scene: dict, out: Path, progress: Progress, resume: bool = F
         CurveStyle(marks=[(s.dD_over_R, s.force_before, f"snap {k + 1}") for k, s in enumerate(res.snaps)],
                    branch=res.segment, branch_name="segment")), files, notes)
     name, times = series_time(("apex displacement dD/R", res.x), ("state", np.arange(len(res.path_states))))
-    write_series(out / "indentation.xdmf", system, [(t, q, 1.0) for t, q in zip(times, res.path_states)],
-                 time_name=name)
+    # every state with the rod frames it was found with (the end's frames give other twists and forces)
+    write_series(out / "indentation.xdmf", system,
+                 [(t, q, 1.0, h) for t, q, h in zip(times, res.path_states, res.path_histories)], time_name=name)
     files += ["indentation.xdmf", "indentation.h5"]
     configurations = []
     # the pre-stressed start, then the states the tracer kept: segment ends, critical points, landings
-    states = [(0.0, res.path_states[0])] + sorted(res.states.items()) if res.path_states else []
-    for k, (x, q) in enumerate(states):
+    states = ([(0.0, res.path_states[0], res.path_histories[0])]
+              + [(x, q, res.state_histories.get(x)) for x, q in sorted(res.states.items())] if res.path_states else [])
+    for k, (x, q, history) in enumerate(states):
         name = f"configuration_{k:02d}.vtu"
-        write_state(out / name, system, q)
+        write_state(out / name, system, q, history=history)
         configurations.append({"file": name, "dD_over_R": float(x), "label": classify_configuration(model, q)})
         files.append(name)
     if res.path_states:
-        files += write_final_state(scene, out, system, res.path_states[-1], 1.0,
-                              [f for f in scene["output"]["formats"] if f != "xdmf"])
+        # a run that stops at an unstable point has accepted it after the last state of the path
+        with system.evaluated_with(res.path_histories[-1]):
+            files += write_final_state(scene, out, system, res.path_states[-1], 1.0,
+                                       [f for f in scene["output"]["formats"] if f != "xdmf"])
     summary = {**base, "converged": bool(res.success), **res.summary(), "mode": ind["mode"],
                "imperfection": {"type": "forces", "amplitude_N": float(amplitude),
                                 "amplitude_over_EI_R2": float(amplitude / scale), "seed": int(seed)},

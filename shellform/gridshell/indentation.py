@@ -230,6 +230,8 @@ class _Trace:
         self.snaps: list[Snap] = []
         self.exchanges: list[Snap] = []
         self.states: dict[float, np.ndarray] = {}
+        self.state_histories: dict[float, tuple | None] = {}  # the rod frames each state was found with
+        self.path_histories: list = []
         self.totals = {"steps": 0, "newton": 0, "rejected": 0}
         self.timings: dict[str, float] = {"stability": 0.0}
         self.q, self.p, self.segment = np.array(self.system.q_ref), 0.0, 0
@@ -243,6 +245,7 @@ class _Trace:
         self.labels.append(classify_configuration(self.model, qq) if self.o.classify else "")
         if self.o.store_states:
             self.path_states.append(np.array(qq))
+            self.path_histories.append(self.system.history())
         if self.progress is not None:
             self.progress(mu / self.R, self.fs[-1] / self.setup.force_scale, n_neg)
 
@@ -269,7 +272,7 @@ class _Trace:
                 return True
             if not (pt.step == 0 and self.xs and abs(pt.mu - self.xs[-1]) < 1e-15 and self.segment == self.seg[-1]):
                 self.add_point(pt.q, pt.mu, 0)
-            last["stable"] = (pt.mu, pt.q.copy())
+            last["stable"] = (pt.mu, pt.q.copy(), system.history())
             return None
 
         res = trace_path(
@@ -284,14 +287,14 @@ class _Trace:
         for k, v in res.timings.items():
             self.timings[k] = self.timings.get(k, 0.0) + v
         if "stable" in last:
-            self.states[last["stable"][0] / self.R] = last["stable"][1]
+            self.keep_state(*last["stable"])
         return res, last
 
     def critical_point(self, res, last):
         """Where the branch ends: a fold of dD located by the tracer, or a bifurcation located here."""
         system = self.system
         folds = [e for e in res.events if e.kind == "limit" and e.step == res.steps]
-        mu_a, q_a = last["stable"]
+        mu_a, q_a, _ = last["stable"]
         mu_b, q_b, _ = last["unstable"]
         if folds and folds[-1].located:
             ev = folds[-1]
@@ -320,10 +323,16 @@ class _Trace:
                 return q_new, mu_new, why
         return None, mu_new, why
 
-    def record_snap(self, mu_c, q_c, f_c, kind, located, q_new, mu_new):
+    def keep_state(self, mu, q, history):
+        """Keep ``q`` (at ``dD = mu``) among the selected states, with the rod frames it was found with."""
+        self.states[mu / self.R] = q
+        self.state_histories[mu / self.R] = history
+
+    def record_snap(self, mu_c, q_c, f_c, h_c, kind, located, q_new, mu_new):
         """Record what happened at the critical point: a snap, a merged snap or an exchange of stability.
 
-        ``f_c`` is the force at the critical state ``q_c``, computed before the snap moved the rod frames.
+        ``f_c`` is the force at the critical state ``q_c`` and ``h_c`` the rod frames it was found with,
+        both taken before the snap moved the frames.
         """
         o, setup, model = self.o, self.setup, self.model
         x_c, x_new = model.positions(q_c), model.positions(q_new)
@@ -340,7 +349,7 @@ class _Trace:
             # experiment this is one snap, so merge it into the previous one
             keep = [i for i, s in enumerate(self.seg) if s != self.segment]
             for lst in (self.xs, self.fs, self.seg, self.negs, self.labels) + (
-                    (self.path_states,) if o.store_states else ()):
+                    (self.path_states, self.path_histories) if o.store_states else ()):
                 lst[:] = [lst[i] for i in keep]
             event = self.snaps[-1]
             event.force_after = setup.force(q_new) / setup.force_scale
@@ -348,14 +357,14 @@ class _Trace:
             event.merged += 1
         elif jump >= o.min_jump:
             self.segment += 1
-            self.states[mu_c / self.R] = np.array(q_c)
+            self.keep_state(mu_c, np.array(q_c), h_c)
             self.snaps.append(event)
             self.snap_start_q = np.array(q_c)
         else:
             self.exchanges.append(event)
         self.add_point(q_new, mu_new, 0)
         event.label_after = self.labels[-1]
-        self.states[mu_new / self.R] = q_new.copy()
+        self.keep_state(mu_new, q_new.copy(), self.system.history())
         self.segment_start = mu_new if jump >= o.min_jump else self.segment_start
         self.q, self.p = q_new, mu_new
 
@@ -378,12 +387,12 @@ class _Trace:
             # the rods' twist angles are measured from the reference frames of the last accepted state:
             # the critical state's force is read with the frames of the path next to it, before the
             # snap turns them (after it, the same state vector describes other twists, other forces)
-            f_c = self.setup.force(q_c)
+            f_c, h_c = self.setup.force(q_c), self.system.history()
             q_new, mu_new, why = self.beyond(mu_c, q_c, mode_free)
             if q_new is None:
                 return False, f"no stable state found beyond the critical point at dD/R = {mu_c / self.R:.4g}: {why}"
             self.system.accept(q_new)
-            self.record_snap(mu_c, q_c, f_c, kind, located, q_new, mu_new)
+            self.record_snap(mu_c, q_c, f_c, h_c, kind, located, q_new, mu_new)
             if mu_new >= self.dD_max:
                 return True, f"reached dD/R = {mu_new / self.R:.4g}"
 
@@ -422,4 +431,5 @@ def trace_indentation(
         steps=tr.totals["steps"], newton_iterations=tr.totals["newton"], rejected_steps=tr.totals["rejected"],
         n_dof=setup.system.n_dof, n_free=setup.system.n_free, wall_time_s=time.perf_counter() - t0,
         timings=tr.timings, exchanges=tr.exchanges, path_states=tr.path_states,
+        state_histories=tr.state_histories, path_histories=tr.path_histories,
     )

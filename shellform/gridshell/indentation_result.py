@@ -73,6 +73,10 @@ class IndentationResult:
         and the states reached after them.
     path_states : list of ndarray
         State of every path point (only with ``store_states``).
+    state_histories, path_histories : dict, list
+        The rod frames each of ``states`` and ``path_states`` was found with
+        (``system.history()`` then): a state's twists, torques and reactions
+        are evaluated with its own (``shellform.io.state_mesh(..., history=)``).
     success : bool
     message : str
     steps, newton_iterations, rejected_steps : int
@@ -102,6 +106,8 @@ class IndentationResult:
     timings: dict = field(default_factory=dict)
     exchanges: list = field(default_factory=list)
     path_states: list = field(default_factory=list)
+    state_histories: dict = field(default_factory=dict)
+    path_histories: list = field(default_factory=list)
 
     @property
     def x(self) -> np.ndarray:

@@ -82,3 +82,4 @@ class CheckpointFile:
         """The saved arrays (use in a ``with``)."""
         return open_checkpoint(self.path)
 
+

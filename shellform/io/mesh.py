@@ -25,6 +25,7 @@ run never leaves a half-written result behind.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import meshio
@@ -89,15 +90,23 @@ def _line_cells(system, q) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return lines, {"group": group, **fields}
 
 
-def state_mesh(system, q: np.ndarray, lam: float = 1.0) -> meshio.Mesh:
-    """A meshio mesh of the structure at state ``q`` with its results."""
+def state_mesh(system, q: np.ndarray, lam: float = 1.0, history=None) -> meshio.Mesh:
+    """A meshio mesh of the structure at state ``q`` with its results.
+
+    ``history``: the path history ``q`` was found with (``system.history()``
+    when the state was accepted); a rod model's twists, moments, torques and
+    reactions are evaluated with it. None: the system's current history, right
+    for the last accepted state only.
+    """
     s = system.structure
     n = s.n_nodes
     x = q[: 3 * n].reshape(n, 3)
-    lines, fields = _line_cells(system, q)
+    with evaluated_with(system, history):
+        lines, fields = _line_cells(system, q)
+        reactions = system.reactions(q, lam)[: 3 * n].reshape(n, 3)
     point_data = {
         "displacement": x - s.nodes,
-        "reaction": system.reactions(q, lam)[: 3 * n].reshape(n, 3),
+        "reaction": reactions,
     }
     cell_data = {k: [v] for k, v in fields.items()}
     return meshio.Mesh(points=x.copy(), cells=[("line", lines)], point_data=point_data, cell_data=cell_data)
@@ -114,13 +123,14 @@ def normalised_mode(mode: np.ndarray, n_nodes: int) -> np.ndarray:
     return m * (np.sign(flat[np.argmax(np.abs(flat))]) / size)
 
 
-def write_mode(path, system, q: np.ndarray, mode: np.ndarray, lam: float = 1.0) -> Path:
+def write_mode(path, system, q: np.ndarray, mode: np.ndarray, lam: float = 1.0, history=None) -> Path:
     """Write the state at a critical point with its buckling mode as point data ``mode``.
 
     ``mode`` is normalised by :func:`normalised_mode` (ParaView: "Warp By
-    Vector" on ``mode`` with a scale factor in metres shows the buckled shape).
+    Vector" on ``mode`` with a scale factor in metres shows the buckled shape);
+    ``history`` as in :func:`state_mesh`.
     """
-    mesh = state_mesh(system, q, lam)
+    mesh = state_mesh(system, q, lam, history)
     mesh.point_data["mode"] = normalised_mode(mode, system.structure.n_nodes)
     return write_mesh(path, mesh)
 
@@ -133,6 +143,17 @@ def write_mesh(path, mesh: meshio.Mesh, file_format: str | None = None) -> Path:
     return path
 
 
-def write_state(path, system, q: np.ndarray, lam: float = 1.0) -> Path:
-    """Write one state (format from the suffix: ``.vtu``, ``.vtk``, ``.xdmf``, ...)."""
-    return write_mesh(path, state_mesh(system, q, lam))
+def write_state(path, system, q: np.ndarray, lam: float = 1.0, history=None) -> Path:
+    """Write one state (format from the suffix: ``.vtu``, ``.vtk``, ``.xdmf``, ...); ``history`` as in
+    :func:`state_mesh`."""
+    return write_mesh(path, state_mesh(system, q, lam, history))
+
+
+@contextmanager
+def evaluated_with(system, history):
+    """``system`` with the path history ``history`` while the block runs (systems without history as they are)."""
+    if history is None or not hasattr(system, "evaluated_with"):
+        yield system
+        return
+    with system.evaluated_with(history):
+        yield system

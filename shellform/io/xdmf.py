@@ -49,14 +49,16 @@ def _attribute(grid, h5_name, dataset, name, data, center) -> None:
     _item(attr, h5_name, dataset, data)
 
 
-def write_series(path, system, states: Iterable[tuple[float, np.ndarray, float]], time_name: str = "step") -> Path:
+def write_series(path, system, states: Iterable[tuple], time_name: str = "step") -> Path:
     """Write a sequence of states as ``path`` (XDMF) and ``path`` with suffix ``.h5``.
 
     Parameters
     ----------
     path : path-like
         Target ``.xdmf`` file.
-    states : iterable of (time, q, load_factor)
+    states : iterable of (time, q, load_factor) or (time, q, load_factor, history)
+        ``history``: the path history the state was found with
+        (:func:`~shellform.io.mesh.state_mesh`), for rod models.
     time_name : str
         What ``time`` is (stored in the HDF5 file), for example ``"load factor"``.
 
@@ -75,13 +77,13 @@ def write_series(path, system, states: Iterable[tuple[float, np.ndarray, float]]
     last = -np.inf
     with atomic_target(h5_path) as tmp, h5py.File(tmp, "w") as h5:
         h5.attrs["time_name"] = time_name
-        for k, (t, q, lam) in enumerate(states):
+        for k, (t, q, lam, *history) in enumerate(states):
             t = float(t)
             if not t > last:
                 raise ShellformError(f"{path.name}: the {time_name} of state {k} ({t:g}) does not exceed the one "
                                      f"before ({last:g}); a time series needs increasing times")
             last = t
-            mesh = state_mesh(system, q, lam)
+            mesh = state_mesh(system, q, lam, history[0] if history else None)
             lines = mesh.cells[0].data
             if k == 0:
                 h5["cells"] = lines

@@ -323,5 +323,5 @@ def _event(tr, kind, at, bracket, A, n_A, message: str) -> PathEvent:
         **tr.location(q, r, p, tr.s + at.sigma), kind=kind, step=tr.step + 1,
         n_negative_before=int(n_A), n_negative_after=-1, located=not message, bracket=abs(hi.pt[1] - lo.pt[1]),
         arc_bracket=hi.sigma - lo.sigma, eigenvalue=eig, mode=mode, q=q.copy(), reactions=reactions,
-        tangent=np.concatenate([t_du, [t_dp]]), message=message,
+        tangent=np.concatenate([t_du, [t_dp]]), message=message, history=tr.history(),
     )

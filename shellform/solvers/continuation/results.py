@@ -101,6 +101,10 @@ class PathEvent(PathLocation):
     switched : bool
         The tracer left the primary branch here.
     message : str
+    history : tuple or None
+        The rod frames ``q`` was found with (``system.history()``; None
+        without rods): its twists, torques and reactions are evaluated with
+        them (``shellform.io.state_mesh(..., history=)``).
     """
 
     kind: str
@@ -117,6 +121,7 @@ class PathEvent(PathLocation):
     tangent: np.ndarray
     switched: bool = False
     message: str = ""
+    history: tuple | None = None
 
     _SCALARS = (
         "kind", "step", "arc_length", "lam", "mu", "parameter", "load", "displacement",
@@ -159,6 +164,9 @@ class ContinuationResult:
         Full DOF vectors of the path points (``state_steps`` gives their
         step numbers; a resumed run has those of its checkpoint too); empty
         when states were not stored.
+    state_histories : list
+        The rod frames each of ``states`` was found with (``system.history()``
+        then; None entries without rods).
     events : list of PathEvent
     timings : dict of str to float
         Wall time [s]: ``assembly`` (residual and tangent), ``linear_algebra``
@@ -185,6 +193,7 @@ class ContinuationResult:
     timings: dict[str, float]
     monitors: tuple[str, ...] = ()
     parameter_scale: float = 0.0
+    state_histories: list = field(default_factory=list)
 
     def __getitem__(self, column: str) -> np.ndarray:
         return self.table[column]

@@ -14,11 +14,12 @@ from typing import Protocol
 
 import numpy as np
 
+from ...assembly import stack_histories, unstack_histories
 from ...errors import CheckpointMismatch
 from ...fingerprint import check_fingerprint, fingerprint_record, model_fingerprint
 from .results import PathEvent
 
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2  # 2: the states' rod frames are kept with them
 
 
 class Checkpoint(Protocol):
@@ -66,6 +67,9 @@ def save(tr, checkpoint: Checkpoint):
     # the states of the points so far: a resumed run then has all of them, as an uninterrupted one
     arrays["states"] = np.array(tr.states, dtype=float).reshape(len(tr.states), n)
     arrays["state_steps"] = np.asarray(tr.state_steps, dtype=np.int64)
+    # with the rod frames each was found with (and those of the events' states)
+    arrays.update(stack_histories("state_history", tr.state_histories))
+    arrays.update(stack_histories("event_history", [e.history for e in tr.events]))
 
     # what the path depends on, so that a resume of another model or other settings is
     # refused: every option but the step budget and what is kept in memory
@@ -103,7 +107,9 @@ def load(tr, checkpoint: Checkpoint):
         if "states" in z.files:
             tr.states = list(z["states"])
             tr.state_steps = [int(k) for k in z["state_steps"]]
+            tr.state_histories = unstack_histories(z, "state_history", len(tr.states), path)
         modes, states, reacts, tans = z["event_modes"], z["event_states"], z["event_reactions"], z["event_tangents"]
+        histories = unstack_histories(z, "event_history", len(meta["events"]), path)
         objs = tr.history_objects()
         if meta.get("history_objects", 0) != len(objs):
             raise CheckpointMismatch(
@@ -119,6 +125,7 @@ def load(tr, checkpoint: Checkpoint):
     tr.u = tr.q[tr.free].copy()
     tr.finished = tuple(meta["finished"]) if meta.get("finished") else None
     tr.events = [
-        PathEvent(**ev, mode=modes[i], q=states[i], reactions=reacts[i], tangent=tans[i])
+        PathEvent(**ev, mode=modes[i], q=states[i], reactions=reacts[i], tangent=tans[i], history=histories[i])
         for i, ev in enumerate(meta["events"])
     ]
+

@@ -91,6 +91,7 @@ class Tracer:
             self.table[name] = []
         self.states: list[np.ndarray] = []
         self.state_steps: list[int] = []
+        self.state_histories: list = []  # the rod frames each state was found with
         self.events: list[PathEvent] = []
         self.rejected = 0
         self.newton_total = 0
@@ -247,6 +248,7 @@ class Tracer:
         if self.o.store_states:
             self.states.append(q.copy())
             self.state_steps.append(self.step)
+            self.state_histories.append(self.history())
         return point
 
     # -- one step with cut-backs -------------------------------------------------------------
@@ -482,15 +484,15 @@ class Tracer:
             hook(q)
         self.play = None
 
+    def history(self):
+        """A copy of the path history as accepted so far (the rod frames; None without rods)."""
+        history = getattr(self.system, "history", None)
+        return history() if history is not None else None
+
     def history_objects(self):
         """Objects holding path history that a checkpoint must carry (rod reference frames)."""
-        objs, seen = [], set()
-        for e in self.system.effects:
-            f = getattr(e, "frames", None)
-            if f is not None and hasattr(f, "state") and hasattr(f, "restore") and id(f) not in seen:
-                seen.add(id(f))
-                objs.append(f)
-        return objs
+        objects = getattr(self.system, "history_objects", None)
+        return objects() if objects is not None else []
 
     def record_current(self):
         """Record the point a branch switch has just made current."""
@@ -505,5 +507,6 @@ class Tracer:
             success=success, message=message, status=status, control=self.control, steps=self.step,
             rejected_steps=self.rejected, newton_iterations=self.newton_total, table=table,
             states=self.states, state_steps=self.state_steps, events=self.events, timings=dict(self.timer.t),
+            state_histories=self.state_histories,
             monitors=tuple(self.extra_columns()), parameter_scale=math.sqrt(self.c2),
         )
