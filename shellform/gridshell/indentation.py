@@ -291,18 +291,22 @@ class _Trace:
         return res, last
 
     def critical_point(self, res, last):
-        """Where the branch ends: a fold of dD located by the tracer, or a bifurcation located here."""
+        """Where the branch ends: a fold of dD located by the tracer, or a bifurcation located here.
+
+        Returns ``(mu, q, kind, located, mode, history)``, ``history`` the rod frames ``q`` was found with.
+        """
         system = self.system
         folds = [e for e in res.events if e.kind == "limit" and e.step == res.steps]
-        mu_a, q_a, _ = last["stable"]
+        mu_a, q_a, h_a = last["stable"]
         mu_b, q_b, _ = last["unstable"]
         if folds and folds[-1].located:
             ev = folds[-1]
-            return ev.mu, ev.q, "limit", True, lowest_mode(system.tangent_free(ev.q))
+            history = ev.history if ev.history is not None else system.history()
+            return ev.mu, ev.q, "limit", True, lowest_mode(system.tangent_free(ev.q)), history
         if mu_b > mu_a:
             mu_c, q_c, located = locate_stability_loss(self.setup, q_a, mu_a, q_b, mu_b, self.o.locate_tol * self.R)
-            return mu_c, q_c, "bifurcation", located, lowest_mode(system.tangent_free(q_c))
-        return mu_a, q_a, "unlocated", False, lowest_mode(system.tangent_free(q_b))
+            return mu_c, q_c, "bifurcation", located, lowest_mode(system.tangent_free(q_c)), system.history()
+        return mu_a, q_a, "unlocated", False, lowest_mode(system.tangent_free(q_b)), h_a
 
     def beyond(self, mu_c, q_c, mode_free):
         """The stable state past the critical point: ``(q, mu, why)``, ``q`` None when none was found.
@@ -383,11 +387,12 @@ class _Trace:
             losses += 1
             if losses > self.o.max_snaps:
                 return True, f"stopped after {self.o.max_snaps} losses of stability at dD/R = {last['stable'][0] / self.R:.4g}"
-            mu_c, q_c, kind, located, mode_free = self.critical_point(res, last)
-            # the rods' twist angles are measured from the reference frames of the last accepted state:
-            # the critical state's force is read with the frames of the path next to it, before the
-            # snap turns them (after it, the same state vector describes other twists, other forces)
-            f_c, h_c = self.setup.force(q_c), self.system.history()
+            mu_c, q_c, kind, located, mode_free, h_c = self.critical_point(res, last)
+            # the rods' twist angles are measured from reference frames carried along the path: the
+            # critical state's force is read with the frames it was found with, not those the snap
+            # leaves (with which the same state vector describes other twists, other forces)
+            with self.system.evaluated_with(h_c):
+                f_c = self.setup.force(q_c)
             q_new, mu_new, why = self.beyond(mu_c, q_c, mode_free)
             if q_new is None:
                 return False, f"no stable state found beyond the critical point at dD/R = {mu_c / self.R:.4g}: {why}"
