@@ -693,7 +693,7 @@ NOTES = [
     "(`benchmarks/results/bench_hemisphere_sizes.md`).",
     "* Cost: the Voronoi length barely matters for the thresholds (at most 0.017 in dD/R between 2 mm and "
     "0.5 mm where the same snaps occur, at most 0.008 between 1 mm and 0.5 mm), while halving it from 1 mm "
-    "to 0.5 mm multiplies the wall time by 1.5 to 3.",
+    "to 0.5 mm multiplies the wall time by 1.4 to 2.3.",
 ]
 
 
