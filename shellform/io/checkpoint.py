@@ -82,4 +82,3 @@ class CheckpointFile:
         """The saved arrays (use in a ``with``)."""
         return open_checkpoint(self.path)
 
-

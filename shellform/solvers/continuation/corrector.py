@@ -13,12 +13,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ..equilibrium import EquilibriumCheck, forces_in_play
 from ..linear import SingularMatrixError
 from .problem import StepFailure
+
+
+class LastLinearisation(NamedTuple):
+    """The corrector's last tangent ``K``, ``g = dG/dp`` and factor ``F``, taken ``distance`` (in the
+    arc-length metric) from the point ``(u, p)`` it converged to."""
+
+    u: np.ndarray
+    p: float
+    K: object
+    g: np.ndarray
+    F: object
+    distance: float
 
 
 @dataclass
@@ -75,7 +88,8 @@ def correct(tr, u0, p0, du, dp, ds):
             raise StepFailure(eq.roundoff_failure())
         if eq.converged or stalled:
             if last is not None:
-                tr.corrector_last = (u, p, last[0], last[1], last[2], tr.norm(du - last[3], dp - last[4]))
+                K, g, F, du_k, dp_k = last
+                tr.corrector_last = LastLinearisation(u, p, K, g, F, tr.norm(du - du_k, dp - dp_k))
             return u, p, q, r, it
         previous = nR
         if norm0 is None:

@@ -128,4 +128,3 @@ def load(tr, checkpoint: Checkpoint):
         PathEvent(**ev, mode=modes[i], q=states[i], reactions=reacts[i], tangent=tans[i], history=histories[i])
         for i, ev in enumerate(meta["events"])
     ]
-

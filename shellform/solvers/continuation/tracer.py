@@ -66,7 +66,7 @@ class Tracer:
                                          else self.o.definite_branch)
         #: ``(u, K, g, F)`` of the last point analysed: what follows it (event location) reuses them
         self.last_linearisation = None
-        self.corrector_last = None  # (u, p, K, g, F, distance): the corrector's last linearisation, near (u, p)
+        self.corrector_last = None  # the corrector's last linearisation (corrector.LastLinearisation)
         self.free = system.free
         self.monitors = dict(o.monitors or {})
         for name, spec in self.monitors.items():
@@ -180,9 +180,9 @@ class Tracer:
         the last correction), else a new tangent and factorisation there.
         """
         last = self.corrector_last
-        if (last is not None and last[0] is u and last[1] == p and last[5] <= REUSE_DISTANCE * length
-                and (last[4] is None or factor_alive(last[4]))):
-            return last[2], last[3], last[4]
+        if (last is not None and last.u is u and last.p == p and last.distance <= REUSE_DISTANCE * length
+                and (last.F is None or factor_alive(last.F))):
+            return last.K, last.g, last.F
         K, g = self.pb.jacobian(u, p, q)
         return K, g, self.pb.factor(K)
 
