@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import SceneError, ShellformError
 from ..io import write_json, write_mode
+from ..io.mesh import evaluated_with
 from ..fingerprint import digest
 from ..io.checkpoint import load_checkpoint, save_checkpoint
 from ..io.files import output_folder, output_lock
@@ -124,8 +125,9 @@ def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, 
                          f"point: raise parameter_max (now {c['parameter_max']}), max_displacement or max_steps")
     event = res.events[0]
     length = sh.reference_length(model.structure, settings.relative_to)
-    values, modes = (sh.mode_shapes(model.system, event.q, k) if k else
-                     (np.zeros(0), np.zeros((0, model.structure.n_nodes, 3))))
+    with evaluated_with(model.system, event.history):  # a rod state's tangent with the frames it was found with
+        values, modes = (sh.mode_shapes(model.system, event.q, k) if k else
+                         (np.zeros(0), np.zeros((0, model.structure.n_nodes, 3))))
     after = post_buckling(scene, settings.max_step_angle) if event.kind == "bifurcation" else {}
     progress(f"perfect structure: {event.kind} point at load factor {event.lam:.6g}"
              + (f", {after['class']} (secondary path {after['+']} on the + side, {after['-']} on the - side)"
@@ -137,7 +139,8 @@ def _perfect(scene: dict, settings: StudySettings, out: Path, fingerprint: str, 
     for i, shape in enumerate(modes):
         full = np.zeros(n_dof)
         full[: shape.size] = shape.ravel()
-        files.append(write_mode(out / f"mode_{i + 1}.vtu", model.system, event.q, full, event.lam).name)
+        files.append(write_mode(out / f"mode_{i + 1}.vtu", model.system, event.q, full, event.lam,
+                                history=event.history).name)
     save_checkpoint(out / "perfect.npz", key=key, lam_cr=perfect.lam_cr, kind=perfect.kind,
                     reference_length=length, modes=modes, eigenvalues=values, q=event.q,
                     post_buckling=json.dumps(after))
