@@ -4,7 +4,7 @@ The corrector's last tangent is taken at the iterate before the last correction,
 within about 1e-5 to 1e-3 of the step from the converged point. Where nothing is
 counted at the point (paths traced without stability counting, such as the
 hemisphere's indentation), that tangent and its factor serve as the point's
-(``shellform.solvers.continuation.tracer.REUSE_DISTANCE``); off, every point is
+(``shellform.solvers.continuation.corrector.REUSE_DISTANCE``); off, every point is
 factorised again. Each case runs in its own process, the two settings
 alternating, on:
 
@@ -33,10 +33,11 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 
 def one_case(case: str, size: int, reuse: bool) -> dict:
+    import shellform.solvers.continuation.corrector as corrector
     import shellform.solvers.continuation.tracer as tracer
 
     if not reuse:
-        tracer.REUSE_DISTANCE = -1.0
+        corrector.REUSE_DISTANCE = -1.0
     factorisations = []
     factor = tracer.Problem.factor
     tracer.Problem.factor = lambda self, K: factorisations.append(1) or factor(self, K)

@@ -384,6 +384,7 @@ def test_without_stability_a_point_takes_the_correctors_last_factor(monkeypatch)
     tangent and factor (a last correction away) instead of a new factorisation; the limit points are
     still located to a tight tolerance on the load, and with stability counted every point is
     factorised anew."""
+    import shellform.solvers.continuation.corrector as corrector
     import shellform.solvers.continuation.tracer as tracer
     from test_continuation_models import H, P_CR, von_mises
 
@@ -394,7 +395,7 @@ def test_without_stability_a_point_takes_the_correctors_last_factor(monkeypatch)
     monkeypatch.setattr(tracer.Problem, "factor", lambda self, K: calls.append(1) or factor(self, K))
 
     def run(reuse, stability):
-        monkeypatch.setattr(tracer, "REUSE_DISTANCE", 1e-3 if reuse else -1.0)
+        monkeypatch.setattr(corrector, "REUSE_DISTANCE", 1e-3 if reuse else -1.0)
         calls.clear()
         res = trace_path(von_mises("load"), "load", initial_increment=P_CR / 7, max_steps=200, critical_rtol=1e-9,
                          stability=stability, callback=lambda pt: pt.q[5] < -1.2 * H)

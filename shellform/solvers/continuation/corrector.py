@@ -19,7 +19,16 @@ import numpy as np
 
 from ..equilibrium import EquilibriumCheck, forces_in_play
 from ..linear import SingularMatrixError
-from .problem import StepFailure
+from .problem import StepFailure, factor_alive
+
+#: Where nothing is counted at a converged point (``stability`` off), its path tangent comes from the
+#: corrector's last tangent and factor when these were taken within this share of the step from
+#: the point (the last correction is 1e-5 to 1e-3 of the step on the lattice domes and the
+#: hemispheres): one factorisation less per step (``benchmarks/bench_point_linearisation.py``).
+#: Not where the point's inertia is counted, which must be that of the point itself (an
+#: eigenvalue within the last correction of zero could change sign), nor at the trial points
+#: of an event's location, whose test function must be exact for a tight tolerance on the load.
+REUSE_DISTANCE = 1e-3
 
 
 class LastLinearisation(NamedTuple):
@@ -114,30 +123,10 @@ def correct(tr, u0, p0, du, dp, ds):
             # their combination cancels, so use the bordered system instead
             a = b = None
         if a is not None:
-            w = du + a
-            A = float(b @ b) + tr.c2
-            B = 2.0 * (float(w @ b) + tr.c2 * dp)
-            C = float(w @ w) + tr.c2 * dp * dp - ds * ds
-            disc = B * B - 4.0 * A * C
-            if disc >= 0.0 and A > 0.0:
-                sq = math.sqrt(disc)
-                # numerically stable pair of roots
-                qq = -0.5 * (B + math.copysign(sq, B))
-                roots = [qq / A, C / qq] if qq != 0.0 else [0.0, 0.0]
-                best = None
-                for rt in roots:
-                    du_n, dp_n = w + rt * b, dp + rt
-                    score = tr.dot(du_n, dp_n, du, dp)
-                    if best is None or score > best[0]:
-                        best = (score, du_n, dp_n)
-                du, dp = best[1], best[2]
-            else:
-                # no real root: step to the point of the line nearest the sphere
-                complex_roots += 1
-                if complex_roots > 3:
-                    raise StepFailure("arc-length constraint has no real root (step too long for the curvature)")
-                rt = -B / (2.0 * A) if A > 0 else 0.0
-                du, dp = w + rt * b, dp + rt
+            du, dp, real = constrained_update(tr, du, dp, a, b, ds)
+            complex_roots += not real
+            if complex_roots > 3:
+                raise StepFailure("arc-length constraint has no real root (step too long for the curvature)")
         else:
             # singular tangent: bordered Newton step with the linearised constraint
             cval = tr.dot(du, dp, du, dp) - ds * ds
@@ -149,6 +138,48 @@ def correct(tr, u0, p0, du, dp, ds):
         if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
             raise StepFailure(f"non-finite correction at iteration {it + 1}")
     raise StepFailure(f"corrector did not converge in {max_iter} iterations ({eq.describe()})")
+
+
+def constrained_update(tr, du, dp, a, b, ds):
+    """The new increment ``(w + delta b, dp + delta)``, ``w = du + a``, on the arc-length sphere of radius ``ds``.
+
+    Of the two roots ``delta``, the one whose increment turns least from ``(du, dp)``; with no real
+    root, the point of the line nearest the sphere. Returns ``(du, dp, real)``.
+    """
+    w = du + a
+    A = float(b @ b) + tr.c2
+    B = 2.0 * (float(w @ b) + tr.c2 * dp)
+    C = float(w @ w) + tr.c2 * dp * dp - ds * ds
+    disc = B * B - 4.0 * A * C
+    if not (disc >= 0.0 and A > 0.0):
+        rt = -B / (2.0 * A) if A > 0 else 0.0
+        return w + rt * b, dp + rt, False
+    sq = math.sqrt(disc)
+    # numerically stable pair of roots
+    qq = -0.5 * (B + math.copysign(sq, B))
+    roots = [qq / A, C / qq] if qq != 0.0 else [0.0, 0.0]
+    best = None
+    for rt in roots:
+        du_n, dp_n = w + rt * b, dp + rt
+        score = tr.dot(du_n, dp_n, du, dp)
+        if best is None or score > best[0]:
+            best = (score, du_n, dp_n)
+    return best[1], best[2], True
+
+
+def point_linearisation(tr, u, p, q, length: float):
+    """``(K, g, F)`` at the converged point ``(u, p)`` reached by a step of ``length``.
+
+    The corrector's last tangent and factor when they were taken within
+    ``REUSE_DISTANCE`` of that step from the point (at the iterate before the
+    last correction), else a new tangent and factorisation there.
+    """
+    last = tr.corrector_last
+    if (last is not None and last.u is u and last.p == p and last.distance <= REUSE_DISTANCE * length
+            and (last.F is None or factor_alive(last.F))):
+        return last.K, last.g, last.F
+    K, g = tr.pb.jacobian(u, p, q)
+    return K, g, tr.pb.factor(K)
 
 
 def equilibrium(tr, norm: float, r: np.ndarray, p: float, unloaded_scale: float) -> EquilibriumCheck:

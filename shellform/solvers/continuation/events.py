@@ -35,7 +35,7 @@ import scipy.sparse.linalg as spla
 from ..linear import SingularMatrixError, single_threaded
 from ..stability import DENSE_LIMIT, InertiaError, critical_modes, eigsh_nearest_zero
 from .corrector import correct
-from .problem import BranchCrossing, LocationFailure, StepFailure
+from .problem import BranchCrossing, LocationFailure, StepFailure, factor_alive
 from .results import PathEvent
 
 #: Most trial points of one location (a bisection to ``locate_tol = 1e-8`` takes 27).
@@ -140,15 +140,6 @@ def _probe(tr, kind, pt, u0, p0, sign_A, n_A, sigma) -> _Trial:
     before = tr.count(K, F, signed=True) == n_A
     f = eigenvalue_near_zero(K, F) if F is not None else None
     return _Trial(sigma, pt, before, f, tangent, K, F)
-
-
-def factor_alive(F) -> bool:
-    """Whether a factor can still solve (a later factorisation may have taken its storage)."""
-    if F is None:
-        return False
-    if getattr(F, "_solver", True) is None or getattr(F, "_symbolic", True) is None:
-        return False
-    return not getattr(F, "_stale", False)
 
 
 def _needed_width(kind, lo: _Trial, hi: _Trial, rtol: float) -> float:

@@ -252,3 +252,12 @@ class Problem:
     def external_norm(self, p):
         lam, _ = self.lam_mu(p)
         return float(np.linalg.norm(self.f_dead + lam * self.f_ref))
+
+
+def factor_alive(F) -> bool:
+    """Whether a factor can still solve (a later factorisation may have taken its storage)."""
+    if F is None:
+        return False
+    if getattr(F, "_solver", True) is None or getattr(F, "_symbolic", True) is None:
+        return False
+    return not getattr(F, "_stale", False)

@@ -49,7 +49,7 @@ class PathPoint(PathLocation):
     tangent a Cholesky factorisation proved positive definite (0; without
     ``stability`` that tangent may be the corrector's last one, a last
     correction away from the point, see ``REUSE_DISTANCE`` in
-    :mod:`~shellform.solvers.continuation.tracer`).
+    :mod:`~shellform.solvers.continuation.corrector`).
     """
 
     step: int

@@ -23,21 +23,12 @@ from ..mechanism import describe_soft_modes
 from ..stability import DENSE_LIMIT, InertiaError, inertia, nearest_eigenvalue
 from ..step_bounds import FOLD_OVERSHOOT, fold_distance
 from .branches import switch_at
-from .corrector import StepPoint, correct, equilibrium, land
-from .events import factor_alive, locate
+from .corrector import StepPoint, correct, equilibrium, land, point_linearisation
+from .events import locate
 from .options import CONTROLS, ContinuationOptions
 from .problem import LocationFailure, Problem, StepFailure, Timer
 from .results import TABLE_COLUMNS, ContinuationResult, PathEvent, PathPoint
 from .snapshot import Checkpoint, save
-
-#: Where nothing is counted at a converged point (``stability`` off), its path tangent comes from the
-#: corrector's last tangent and factor when these were taken within this share of the step from
-#: the point (the last correction is 1e-5 to 1e-3 of the step on the lattice domes and the
-#: hemispheres): one factorisation less per step (``benchmarks/bench_point_linearisation.py``).
-#: Not where the point's inertia is counted, which must be that of the point itself (an
-#: eigenvalue within the last correction of zero could change sign), nor at the trial points
-#: of an event's location, whose test function must be exact for a tight tolerance on the load.
-REUSE_DISTANCE = 1e-3
 
 
 class Tracer:
@@ -166,25 +157,11 @@ class Tracer:
             K, g = self.pb.jacobian(u, p, q)
             F = self.pb.factor(K)
         else:
-            K, g, F = self.linearisation(u, p, q, self.norm(ref_du, ref_dp))
+            K, g, F = point_linearisation(self, u, p, q, self.norm(ref_du, ref_dp))
         t_du, t_dp = self.tangent_from(K, g, F, ref_du, ref_dp)
         n_neg = self.count(K, F)
         self.last_linearisation = (u, K, g, F)
         return t_du, t_dp, n_neg, K
-
-    def linearisation(self, u, p, q, length: float):
-        """``(K, g, F)`` at the converged point ``(u, p)`` reached by a step of ``length``.
-
-        The corrector's last tangent and factor when they were taken within
-        ``REUSE_DISTANCE`` of that step from the point (at the iterate before
-        the last correction), else a new tangent and factorisation there.
-        """
-        last = self.corrector_last
-        if (last is not None and last.u is u and last.p == p and last.distance <= REUSE_DISTANCE * length
-                and (last.F is None or factor_alive(last.F))):
-            return last.K, last.g, last.F
-        K, g = self.pb.jacobian(u, p, q)
-        return K, g, self.pb.factor(K)
 
     def tangent_from(self, K, g, F, ref_du, ref_dp):
         du = None
