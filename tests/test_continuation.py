@@ -412,17 +412,18 @@ def test_without_stability_a_point_takes_the_correctors_last_factor(monkeypatch)
 
 
 def test_cholesky_is_not_tried_again_within_a_point_after_it_failed(monkeypatch):
-    """Past a limit point Cholesky fails; the same point's remaining factorisations go to LDL^T at
-    once, the next point (a step, a trial point of the location) tries Cholesky again. The start,
-    uncounted yet, is factorised by Cholesky and still bounds the first step by the linearised
-    distance to the nearest critical point."""
+    """Past a limit point Cholesky fails; the same point's remaining factorisations go at once to
+    the tangent with its diagonal raised (or to LDL^T where that fails too), the next point (a step,
+    a trial point of the location) tries Cholesky again. The start, uncounted yet, is factorised
+    by Cholesky and still bounds the first step by the linearised distance to the nearest
+    critical point."""
     import importlib
 
     import shellform.solvers.continuation.problem as problem
 
     start = importlib.import_module("shellform.solvers.continuation.start")
     log = []
-    chol, ldl = problem.CholeskyFactor, problem.LDLFactor
+    chol, ldl, raised = problem.CholeskyFactor, problem.LDLFactor, problem.RaisedCholeskyFactor
 
     def cholesky(*a, **k):
         try:
@@ -433,13 +434,19 @@ def test_cholesky_is_not_tried_again_within_a_point_after_it_failed(monkeypatch)
         log.append("cholesky")
         return F
 
-    class LoggedLDL(ldl):  # a subclass, so that the tracer's isinstance checks still hold
+    class LoggedLDL(ldl):  # subclasses, so that the tracer's isinstance checks still hold
         def __init__(self, *a, **k):
             log.append("ldl")
             super().__init__(*a, **k)
 
+    class LoggedRaised(raised):
+        def __init__(self, *a, **k):
+            log.append("raised")
+            super().__init__(*a, **k)
+
     monkeypatch.setattr(problem, "CholeskyFactor", cholesky)
     monkeypatch.setattr(problem, "LDLFactor", LoggedLDL)
+    monkeypatch.setattr(problem, "RaisedCholeskyFactor", LoggedRaised)
     new_point = problem.Problem.new_point
     monkeypatch.setattr(problem.Problem, "new_point", lambda self: log.append("point") or new_point(self))
     estimates = []
@@ -457,5 +464,44 @@ def test_cholesky_is_not_tried_again_within_a_point_after_it_failed(monkeypatch)
         steps = [s for s in seq.split("\n") if s]
         if "cholesky failed" in steps:
             after = steps[steps.index("cholesky failed") + 1:]
-            assert "cholesky" not in after and "cholesky failed" not in after and after.count("ldl") == len(after)
-    assert any(s.count("ldl") >= 2 for s in points)  # a point whose later factorisations went to LDL^T alone
+            assert "cholesky" not in after and "cholesky failed" not in after
+            assert set(after) <= {"raised", "ldl"}
+    assert any(s.count("raised") >= 2 for s in points)  # a point whose later factorisations went to the raised one
+    assert "ldl" not in log  # the truss's one negative eigenvalue: the raised Cholesky serves every point past it
+
+
+def test_past_limit_points_a_raised_cholesky_traces_the_path_ldl_would(monkeypatch):
+    """The star dome under an apex load through limit and bifurcation points (up to seven negative
+    eigenvalues): where a tangent has one to three negative eigenvalues, a Cholesky factor of it
+    with the diagonal raised at the largest entries of the path tangent gives its solves and its
+    inertia. The same points, the same counts and the same events as with LDL^T at every
+    indefinite tangent."""
+    import shellform.solvers.continuation.problem as problem
+    from test_hard_cases import star_dome
+
+    import shellform as sf
+
+    s = star_dome(1.0)
+    s.load_cases.clear()
+    s.add_load([0], [0.0, 0.0, -1.0])
+    counts = []
+    raised = problem.RaisedCholeskyFactor
+
+    class CountedRaised(raised):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            counts.append(self.n_negative_pivots)
+
+    monkeypatch.setattr(problem, "RaisedCholeskyFactor", CountedRaised)
+    with_raised = trace_path(sf.build_system(s), "load", max_steps=80, stability=True)
+    monkeypatch.setattr(problem, "MAX_RAISED_ROWS", 0)  # every indefinite tangent by LDL^T
+    ldl_only = trace_path(sf.build_system(s), "load", max_steps=80, stability=True)
+    assert {1, 2} <= set(counts)  # past limit points with one and with two negative eigenvalues
+    assert with_raised.n_points == ldl_only.n_points == 81
+    assert list(with_raised["n_negative"]) == list(ldl_only["n_negative"]) and max(with_raised["n_negative"]) == 7
+    scale = np.max(np.abs(ldl_only["parameter"]))
+    assert np.max(np.abs(with_raised["parameter"] - ldl_only["parameter"])) < 1e-10 * scale
+    assert [e.kind for e in with_raised.events] == [e.kind for e in ldl_only.events] and len(ldl_only.events) == 8
+    for a, b in zip(with_raised.events, ldl_only.events):
+        assert a.located and b.located
+        assert abs(a.parameter - b.parameter) <= 2e-6 * abs(b.parameter)  # each located to critical_rtol = 1e-6

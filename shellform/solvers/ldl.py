@@ -6,7 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..sparse_pattern import same_pattern
-from .factor_base import SingularMatrixError, upper_csc
+from .factor_base import SingularMatrixError, normwise_backward_error, refined_solve, row_sum_norm, upper_csc
 
 
 class _SymbolicPool:
@@ -271,13 +271,7 @@ class LDLFactor:
     def norm_inf(self) -> float:
         """Infinity norm of the factorised matrix (largest absolute row sum)."""
         if self._norm_inf is None:
-            A = self.A
-            if self.n == 0:
-                self._norm_inf = 0.0
-            elif np.all(np.diff(A.indptr) > 0):  # row sums by segments: half the time of a sparse |A| times ones
-                self._norm_inf = float(np.max(np.add.reduceat(np.abs(A.data), A.indptr[:-1])))
-            else:
-                self._norm_inf = float(abs(A).sum(axis=1).max())
+            self._norm_inf = row_sum_norm(self.A)
         return self._norm_inf
 
     # -- solves ---------------------------------------------------------------------
@@ -285,11 +279,6 @@ class LDLFactor:
         if self._solver is None:
             raise RuntimeError("this LDL^T factor gave its storage to a later factorisation (previous=...)")
         return self._solver.solve(b)
-
-    def _backward_error(self, x: np.ndarray, b: np.ndarray, r: np.ndarray) -> float:
-        denom = self.norm_inf * float(np.max(np.abs(x), initial=0.0)) + float(np.max(np.abs(b), initial=0.0))
-        res = float(np.max(np.abs(r), initial=0.0))
-        return res / denom if denom > 0.0 else (0.0 if res == 0.0 else np.inf)
 
     def solve(self, b: np.ndarray, refine: int | None = None) -> np.ndarray:
         """Solve ``A x = b`` with iterative refinement.
@@ -309,16 +298,7 @@ class LDLFactor:
         """
         b = np.asarray(b, dtype=float)
         steps = self.refine if refine is None else int(refine)
-        x = self._raw_solve(b)
-        eta = np.inf
-        for k in range(steps + 1):
-            if not np.all(np.isfinite(x)):
-                break
-            r = b - self.A @ x
-            eta = self._backward_error(x, b, r)
-            if eta <= 1e-12 or k == steps:
-                break
-            x = x + self._raw_solve(r)
+        x, eta = refined_solve(self.A, self._raw_solve, self.norm_inf, b, steps)
         failed = not np.all(np.isfinite(x)) or (self.check is not None and eta > self.check)
         if failed and self._to_qdldl():
             return self.solve(b, refine)
@@ -339,7 +319,7 @@ class LDLFactor:
         x = self._raw_solve(b)
         if not np.all(np.isfinite(x)):
             return np.inf
-        return self._backward_error(x, b, b - self.A @ x)
+        return normwise_backward_error(self.norm_inf, x, b, b - self.A @ x)
 
     def trustworthy(self, pivot_tol: float = 1e-10, backward_tol: float = 1e-11) -> bool:
         """Whether the pivot signs give the inertia: no tiny pivot, small backward error."""

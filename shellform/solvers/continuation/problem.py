@@ -18,7 +18,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ...errors import ModelError
+from ..factor_base import NotPositiveDefiniteError
 from ..linear import CholeskyFactor, LDLFactor, LUFactor, SingularMatrixError
+from ..raised_cholesky import RaisedCholeskyFactor
+
+
+#: Most rows a tangent's diagonal is raised at for a Cholesky factor (and the most negative
+#: eigenvalues it is tried for); each failed attempt costs up to a Cholesky factorisation.
+MAX_RAISED_ROWS = 3
 
 
 class StepFailure(Exception):
@@ -66,11 +73,17 @@ class Problem:
         self.f_dead = system.external_force(0.0)
         self._ldl_prev = None
         self._chol_prev = None
-        #: called before each factorisation: whether the tangent is expected positive definite
-        #: (the tracer says so while the last point counted no negative eigenvalue)
-        self.definite_hint = lambda: False
+        #: called before each factorisation: how many negative eigenvalues the tangent is expected
+        #: to have (the last point's count; -1 unknown)
+        self.expected_negative = lambda: -1
         #: a Cholesky factorisation failed since the last :meth:`new_point`
         self._cholesky_failed = False
+        #: called before a raised Cholesky factorisation: a vector along the tangent's softest
+        #: direction (None: unknown); the tracer gives the path tangent, which at a limit point
+        #: is the critical mode
+        self.soft_direction = lambda: None
+        #: the rows whose raised diagonal made the last indefinite tangent positive definite
+        self._raised_rows = None
         self._block = None
         if control == "load":
             if not np.any(self.f_ref != 0.0):
@@ -142,21 +155,19 @@ class Problem:
         (on the apex-loaded lattice domes 2.1 times at 3,711 unknowns, 5.1 at
         16,131 and 7.2 at 37,209; as fast from 759 up to the hemisphere's
         7,628), and where it succeeds the tangent has no negative eigenvalue.
-        Where it fails, LDL^T gives the inertia, and the tangents of the same
-        point's remaining corrector iterations go to LDL^T at once: past a
-        limit point the attempt (half a successful Cholesky's time) would fail
-        at each of them.
+        Where it fails, or a few negative eigenvalues are expected, Cholesky
+        with the failing rows' diagonal raised gives ``K``'s solves and
+        inertia (:class:`~shellform.solvers.raised_cholesky.RaisedCholeskyFactor`);
+        where that fails too, LDL^T. After a failure the tangents of the same
+        point's remaining corrector iterations skip the attempts that failed:
+        past a limit point they would fail at each of them.
         """
         t0 = time.perf_counter()
         try:
-            if self.linear_solver == "ldl" and not self._cholesky_failed and self.definite_hint():
-                try:
-                    F = CholeskyFactor(K, previous=self._chol_prev, stored=True)
-                    self._chol_prev = F
-                    return F
-                except SingularMatrixError:
-                    self._cholesky_failed = True  # the analysis stays with the previous factor for the next attempt
             if self.linear_solver == "ldl":
+                F = self._cholesky(K)
+                if F is not None:
+                    return F
                 try:
                     F = LDLFactor(K, previous=self._ldl_prev)
                     self._ldl_prev = F
@@ -170,6 +181,49 @@ class Problem:
         finally:
             self.timer.add("linear_algebra", t0)
 
+    def _cholesky(self, K):
+        """A Cholesky factor of ``K``, or of ``K`` with a few diagonal entries raised; None where neither serves.
+
+        The rows raised are the largest entries of the softest direction the
+        tracer knows (the path tangent, along the critical mode next to a limit
+        point), one more after each failure: ``K + E B E^T`` is positive definite
+        only if the rows raised carry enough of every negative eigenvalue's mode.
+        """
+        expected = self.expected_negative()
+        if self._cholesky_failed or expected < 0 or expected > MAX_RAISED_ROWS:
+            rows = self._raised_rows if self._cholesky_failed else None
+            if rows is None:
+                return None
+        elif expected > 0 and self._raised_rows is not None:
+            rows = self._raised_rows
+        else:
+            try:
+                F = CholeskyFactor(K, previous=self._chol_prev, stored=True)
+                self._chol_prev = F
+                return F
+            except NotPositiveDefiniteError:
+                # the analysis stays with the previous factor for the next attempt
+                self._cholesky_failed = True
+                rows = None
+        soft = self.soft_direction()
+        order = [] if soft is None else [int(i) for i in np.argsort(-np.abs(soft))[:MAX_RAISED_ROWS]]
+        attempts = ([list(rows)] if rows else []) + [order[:k] for k in range(1, len(order) + 1)]
+        tried = []
+        for rows in attempts:
+            if set(rows) in tried:
+                continue
+            tried.append(set(rows))
+            try:
+                F = RaisedCholeskyFactor(K, rows, previous=self._chol_prev)
+            except NotPositiveDefiniteError:
+                continue
+            except SingularMatrixError:
+                break
+            self._chol_prev, self._raised_rows = F.cholesky, rows
+            return F
+        self._cholesky_failed, self._raised_rows = True, None
+        return None
+
     def new_point(self) -> None:
         """A new point is sought (a step, a trial point of an event's location): Cholesky may be tried again."""
         self._cholesky_failed = False
@@ -182,7 +236,7 @@ class Problem:
             except SingularMatrixError:
                 # an unpivoted LDL^T of an indefinite matrix may lose accuracy: its
                 # solve refines and refuses a poor backward error; then LU decides
-                if not isinstance(F, LDLFactor):
+                if not isinstance(F, (LDLFactor, RaisedCholeskyFactor)):
                     raise
                 return LUFactor(F.A).solve(b)
         finally:
@@ -258,6 +312,8 @@ def factor_alive(F) -> bool:
     """Whether a factor can still solve (a later factorisation may have taken its storage)."""
     if F is None:
         return False
+    if isinstance(F, RaisedCholeskyFactor):
+        return F.alive
     if getattr(F, "_solver", True) is None or getattr(F, "_symbolic", True) is None:
         return False
     return not getattr(F, "_stale", False)

@@ -19,6 +19,7 @@ import numpy as np
 
 from ...errors import ModelError
 from ..linear import CholeskyFactor, LDLFactor, SingularMatrixError
+from ..raised_cholesky import RaisedCholeskyFactor
 from ..mechanism import describe_soft_modes
 from ..stability import DENSE_LIMIT, InertiaError, inertia, nearest_eigenvalue
 from ..step_bounds import FOLD_OVERSHOOT, fold_distance
@@ -53,8 +54,9 @@ class Tracer:
         self.pb = Problem(system, control, o.fixed_lam, o.fixed_mu, self.timer, o.linear_solver)
         # Cholesky first while the path is stable (and at the start, before anything is counted):
         # where it succeeds there is no negative eigenvalue
-        self.pb.definite_hint = lambda: (getattr(self, "n_neg", 0) == 0 if self.o.stability
-                                         else self.o.definite_branch)
+        self.pb.expected_negative = lambda: (getattr(self, "n_neg", 0) if self.o.stability
+                                             else (0 if self.o.definite_branch else -1))
+        self.pb.soft_direction = lambda: getattr(self, "t_du", None)
         #: ``(u, K, g, F)`` of the last point analysed: what follows it (event location) reuses them
         self.last_linearisation = None
         self.corrector_last = None  # the corrector's last linearisation (corrector.LastLinearisation)
@@ -199,7 +201,7 @@ class Tracer:
             return -1
         t0 = time.perf_counter()
         try:
-            fac = F if isinstance(F, LDLFactor) else None
+            fac = F if isinstance(F, (LDLFactor, RaisedCholeskyFactor)) else None
             I = inertia(K, factor=fac)
             return I.n_below_zero if signed else I.n_negative
         except InertiaError:
