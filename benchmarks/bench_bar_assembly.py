@@ -2,9 +2,10 @@
 
 For apex-loaded lattice domes (``bench_default_path``) of ``--rings`` rings, in this
 process: the median time of one free tangent and of one residual with the bars'
-NumPy law (full 6 x 6 blocks) and with the compiled kernels (upper triangles added
-into the tangent's data; ``AxialBar.compiled_from`` set to put every size on either
-side), and the assemblies (one tangent and two residuals, about what a Newton
+NumPy law (the full 6 x 6 blocks summed by one ``bincount``, and the upper triangles
+summed by the System's constant 0/1 matrix) and with the compiled kernels
+(upper triangles added into the tangent's data; ``AxialBar.compiled_from`` set to put
+every size on either side), and the assemblies (one tangent and two residuals, about what a Newton
 iteration takes) after which the saving has paid the kernels' load in a fresh process
 (measured in a subprocess that has imported shellform: numba's import and the cached
 kernels' first calls).
@@ -53,16 +54,22 @@ def main(argv=None):
              for _ in range(3)]
     load = statistics.median(loads)
     print(f"kernels' load in a fresh process: {load:.3f} s (median of {', '.join(f'{x:.3f}' for x in loads)})\n")
-    print("| rings | bars | tangent NumPy [ms] | tangent compiled [ms] | residual NumPy [ms] | residual compiled [ms] | "
-          "assemblies to pay the load |")
-    print("|---:|---:|---:|---:|---:|---:|---:|")
+    print("| rings | bars | tangent NumPy, full blocks [ms] | tangent NumPy, upper triangles [ms] | "
+          "tangent compiled [ms] | residual NumPy [ms] | residual compiled [ms] | assemblies to pay the load |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     default = AxialBar.compiled_from
+    upper_pattern = AxialBar.hessian_upper_pattern
     try:
         for rings in args.rings:
             row = {}
-            for name, threshold in (("numpy", 10**12), ("compiled", 0)):
+            for name, threshold in (("full", 10**12), ("numpy", 10**12), ("compiled", 0)):
                 AxialBar.compiled_from = threshold
-                system = apex_loaded_dome(rings)
+                if name == "full":
+                    AxialBar.hessian_upper_pattern = lambda self: None
+                try:
+                    system = apex_loaded_dome(rings)
+                finally:
+                    AxialBar.hessian_upper_pattern = upper_pattern
                 q = system.q_ref.copy()
                 system.tangent_free(q), system.residual(q)
                 row[name] = (median_time(lambda: system.tangent_free(q), args.repeat),
@@ -70,7 +77,8 @@ def main(argv=None):
             bars = sum(len(e.L) for e in system.effects if isinstance(e, AxialBar))
             saved = (row["numpy"][0] - row["compiled"][0]) + 2 * (row["numpy"][1] - row["compiled"][1])
             pays = f"{load / saved:.0f}" if saved > 0 else "never"
-            print(f"| {rings} | {bars} | {row['numpy'][0] * 1e3:.3f} | {row['compiled'][0] * 1e3:.3f} | "
+            print(f"| {rings} | {bars} | {row['full'][0] * 1e3:.3f} | {row['numpy'][0] * 1e3:.3f} | "
+                  f"{row['compiled'][0] * 1e3:.3f} | "
                   f"{row['numpy'][1] * 1e3:.3f} | {row['compiled'][1] * 1e3:.3f} | {pays} |", flush=True)
     finally:
         AxialBar.compiled_from = default

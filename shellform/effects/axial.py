@@ -185,12 +185,13 @@ class AxialBar(_AxialMembers):
 
     name = "axial"
 
-    #: members from which the bars' energy, forces and tangent values are compiled (numba). The kernels
-    #: save 1.8 ms per tangent and two residuals at 4,236 bars, 6.2 ms at 17,166, but loading them costs a
-    #: process 0.47 s once (``benchmarks/bench_bar_assembly.py``): from this size about 200 assemblies, a
-    #: path of some 100 Newton iterations, pay it. By size alone, so that a model is assembled the same
-    #: way in every process, whatever ran before.
-    compiled_from = 5000
+    #: members from which the bars' energy, forces and tangent values are compiled (numba). Against the
+    #: NumPy law with its upper triangles summed by the System's 0/1 matrix, the kernels save 0.67 ms per
+    #: tangent and two residuals at 4,236 bars, 2.6 ms at 17,166, but loading them costs a process 0.44 s
+    #: once (``benchmarks/bench_bar_assembly.py``): from this size about 200 assemblies, a path of some
+    #: 100 Newton iterations, pay it. By size alone, so that a model is assembled the same way in every
+    #: process, whatever ran before.
+    compiled_from = 15000
 
     def _compiles(self) -> bool:
         if len(self.L) < self.compiled_from:
@@ -209,11 +210,13 @@ class AxialBar(_AxialMembers):
     def hessian_upper_pattern(self):
         """``K`` by its upper triangle on both nodes' diagonal blocks, ``-K`` in full between them (21 entries).
 
-        With it the System's tangent takes the bars' values from :meth:`upper_scatter`'s compiled loop,
-        straight into the CSR data: on the 40-ring lattice dome (17,166 bars) 1.0 ms a free tangent against
-        6.2 ms from the full 6 x 6 blocks (``benchmarks/results/bench_bar_assembly.md``). None below :attr:`compiled_from` members or without numba.
+        About half the values of the full 6 x 6 blocks, summed into the CSR data by the System's constant
+        0/1 matrix, or from :attr:`compiled_from` members by :meth:`upper_scatter`'s compiled loop: a free
+        tangent of the 20-ring lattice dome (4,236 bars) in 0.38 ms (0.25 ms compiled) against 1.07 ms
+        from the full blocks, of the 40-ring one (17,166 bars) in 1.7 ms (1.0 ms) against 6.4 ms
+        (``benchmarks/results/bench_bar_assembly.md``).
         """
-        return self._upper_pattern() if self._compiles() else None  # without the compiled loop they gain nothing
+        return self._upper_pattern()
 
     def _upper_pattern(self):
         cached = self.__dict__.get("_upper")
@@ -266,12 +269,13 @@ class AxialBar(_AxialMembers):
     @classmethod
     def upper_scatter(cls, effects, first, second):
         """A function ``add(effects, q, data)`` that adds the upper Hessian values to the data of a sparse matrix
-        at the slots ``first`` (of every value) and ``second`` (of its mirror), compiled; None without numba or
-        for another force law (see :meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`)."""
+        at the slots ``first`` (of every value) and ``second`` (of its mirror), compiled; None below
+        :attr:`compiled_from` members, without numba or for another force law (the System then sums the values
+        by its constant 0/1 matrix; see :meth:`~shellform.effects.rod_hinge.HingeEffect.upper_scatter`)."""
         from . import rod_compiled as compiled
 
         e = effects[0]
-        if not compiled.available or len(effects) > 1 or type(e)._force is not AxialBar._force \
+        if not e._compiles() or len(effects) > 1 or type(e)._force is not AxialBar._force \
                 or type(e)._active is not AxialBar._active:
             return None
         first, second = (compiled.element_major(a, 21) for a in (first, second))

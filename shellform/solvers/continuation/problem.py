@@ -76,8 +76,8 @@ class Problem:
         #: called before each factorisation: how many negative eigenvalues the tangent is expected
         #: to have (the last point's count; -1 unknown)
         self.expected_negative = lambda: -1
-        #: a Cholesky factorisation failed since the last :meth:`new_point`
-        self._cholesky_failed = False
+        #: a Cholesky factorisation, a raised one, failed since the last :meth:`new_point`
+        self._cholesky_failed = self._raised_failed = False
         #: called before a raised Cholesky factorisation: a vector along the tangent's softest
         #: direction (None: unknown); the tracer gives the path tangent, which at a limit point
         #: is the critical mode
@@ -184,30 +184,29 @@ class Problem:
     def _cholesky(self, K):
         """A Cholesky factor of ``K``, or of ``K`` with a few diagonal entries raised; None where neither serves.
 
-        The rows raised are the largest entries of the softest direction the
+        Plain Cholesky while the path is stable. The rows raised are first
+        those that served last (kept from a tangent past a critical point until
+        the path is stable again, :meth:`path_stable`: the trial points of an
+        event's location lie on both sides of it, and the raised factor counts
+        either side), then the largest entries of the softest direction the
         tracer knows (the path tangent, along the critical mode next to a limit
-        point), one more after each failure: ``K + E B E^T`` is positive definite
-        only if the rows raised carry enough of every negative eigenvalue's mode.
+        point), one more after each failure: ``K + E B E^T`` is positive
+        definite only if the rows raised carry enough of every negative
+        eigenvalue's mode.
         """
         expected = self.expected_negative()
-        if self._cholesky_failed or expected < 0 or expected > MAX_RAISED_ROWS:
-            rows = self._raised_rows if self._cholesky_failed else None
-            if rows is None:
-                return None
-        elif expected > 0 and self._raised_rows is not None:
-            rows = self._raised_rows
-        else:
+        if expected < 0 or expected > MAX_RAISED_ROWS or self._raised_failed:
+            return None
+        if expected == 0 and self._raised_rows is None and not self._cholesky_failed:
             try:
                 F = CholeskyFactor(K, previous=self._chol_prev, stored=True)
                 self._chol_prev = F
                 return F
             except NotPositiveDefiniteError:
-                # the analysis stays with the previous factor for the next attempt
-                self._cholesky_failed = True
-                rows = None
+                self._cholesky_failed = True  # the analysis stays with the previous factor for the next attempt
         soft = self.soft_direction()
         order = [] if soft is None else [int(i) for i in np.argsort(-np.abs(soft))[:MAX_RAISED_ROWS]]
-        attempts = ([list(rows)] if rows else []) + [order[:k] for k in range(1, len(order) + 1)]
+        attempts = ([self._raised_rows] if self._raised_rows else []) + [order[:k] for k in range(1, len(order) + 1)]
         tried = []
         for rows in attempts:
             if set(rows) in tried:
@@ -221,12 +220,16 @@ class Problem:
                 break
             self._chol_prev, self._raised_rows = F.cholesky, rows
             return F
-        self._cholesky_failed, self._raised_rows = True, None
+        self._raised_failed, self._raised_rows = True, None
         return None
 
     def new_point(self) -> None:
         """A new point is sought (a step, a trial point of an event's location): Cholesky may be tried again."""
-        self._cholesky_failed = False
+        self._cholesky_failed = self._raised_failed = False
+
+    def path_stable(self) -> None:
+        """The path has come to a point without negative eigenvalues: plain Cholesky again."""
+        self._raised_rows = None
 
     def solve(self, F, b):
         t0 = time.perf_counter()

@@ -350,6 +350,8 @@ class Tracer:
         self.s += ds
         self.u, self.p, self.q = B.u, B.p, B.q
         self.t_du, self.t_dp, self.n_neg = B.t_du, B.t_dp, B.n_neg
+        if B.n_neg <= 0:
+            self.pb.path_stable()
         self.accept(B.q)
         pt = self.record(B.q, B.r, B.p, B.iterations, ds, B.n_neg)
         self.events.extend(new_events)
