@@ -30,6 +30,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 import numpy as np  # noqa: E402
 from bench_default_path import apex_loaded_dome  # noqa: E402
+from bench_ldl_backend import median_time  # noqa: E402
 
 import shellform.solvers.continuation.problem as problem  # noqa: E402
 from shellform.solvers.continuation import trace_path  # noqa: E402
@@ -38,12 +39,7 @@ from shellform.solvers.raised_cholesky import RaisedCholeskyFactor  # noqa: E402
 
 
 def median_ms(f, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(times)
+    return 1e3 * median_time(f, repeat)
 
 
 def one_factorisation(system, event, repeat):
