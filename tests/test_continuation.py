@@ -505,3 +505,33 @@ def test_past_limit_points_a_raised_cholesky_traces_the_path_ldl_would(monkeypat
     for a, b in zip(with_raised.events, ldl_only.events):
         assert a.located and b.located
         assert abs(a.parameter - b.parameter) <= 2e-6 * abs(b.parameter)  # each located to critical_rtol = 1e-6
+
+
+def test_back_on_a_stable_branch_the_tangents_go_to_plain_cholesky_again(monkeypatch):
+    """The von Mises truss snaps through to its inverted, stable shape: the tangents between its two
+    limit points go to the raised Cholesky, and past the second one, where the path is stable again,
+    to plain Cholesky."""
+    import shellform.solvers.continuation.problem as problem
+
+    kinds = []
+    raised, cholesky = problem.RaisedCholeskyFactor, problem.CholeskyFactor
+
+    class LoggedRaised(raised):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            kinds.append(f"raised {self.n_negative_pivots}")
+
+    def logged_cholesky(*a, **k):
+        F = cholesky(*a, **k)
+        kinds.append("cholesky")
+        return F
+
+    monkeypatch.setattr(problem, "RaisedCholeskyFactor", LoggedRaised)
+    monkeypatch.setattr(problem, "CholeskyFactor", logged_cholesky)
+    stop = lambda pt: pt.displacement > 2.2 * H  # noqa: E731
+    res = trace_path(von_mises("load"), "load", initial_increment=P_CR / 20, ds_max=0.03, max_steps=400,
+                     callback=stop)
+    assert [e.kind for e in res.events] == ["limit", "limit"] and res["n_negative"][-1] == 0
+    last_unstable = max(i for i, k in enumerate(kinds) if k == "raised 1")
+    after = kinds[last_unstable + 1:]
+    assert after.count("cholesky") >= 10 and after.count("cholesky") >= len(after) - 3
