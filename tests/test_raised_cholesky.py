@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellform.solvers.cholesky import CholeskyFactor
 from shellform.solvers.factor_base import NotPositiveDefiniteError, SingularMatrixError
 from shellform.solvers.raised_cholesky import RaisedCholeskyFactor
 from shellform.solvers.stability import inertia
@@ -58,18 +57,6 @@ def test_a_singular_matrix_never_gives_a_trusted_count():
     except SingularMatrixError:
         return  # S exactly singular
     assert F.min_pivot_ratio < 1e-12 and not F.trustworthy(1e-10)
-
-
-def test_a_failed_cholesky_names_the_row_of_its_pivot_once_the_ordering_is_known():
-    A = chain_with_soft_modes(200, [0.5], [77])
-    first = CholeskyFactor(A)  # the analysis's first factor: CHOLMOD's ordering is read here
-    B = sp.csr_matrix(A.toarray() - 5.0 * np.diag(np.eye(200)[77]))  # row 77's diagonal made negative
-    with pytest.raises(NotPositiveDefiniteError) as info:
-        CholeskyFactor(B, previous=first)
-    assert info.value.row == 77
-    with pytest.raises(NotPositiveDefiniteError) as info:
-        CholeskyFactor(B)  # a fresh analysis has no ordering to name the row with
-    assert info.value.row is None
 
 
 def test_a_count_next_to_zero_is_not_trusted():

@@ -11,15 +11,7 @@ class SingularMatrixError(RuntimeError):
 
 
 class NotPositiveDefiniteError(SingularMatrixError):
-    """A Cholesky factorisation met a pivot that is not positive.
-
-    ``row``: the row of the matrix (in its own numbering) whose pivot it was,
-    when the factor's ordering is known, else None.
-    """
-
-    def __init__(self, message: str, row: int | None = None):
-        super().__init__(message)
-        self.row = row
+    """A Cholesky factorisation met a pivot that is not positive: the matrix is not positive definite."""
 
 
 _CONTROLLER = None

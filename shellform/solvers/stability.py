@@ -187,8 +187,9 @@ def inertia(
     ----------
     A : sparse matrix
         Symmetric matrix (the free-DOF tangent).
-    factor : LDLFactor, optional
-        An existing factorisation of ``A`` (saves refactorising).
+    factor : LDLFactor or RaisedCholeskyFactor, optional
+        An existing factorisation of ``A`` that counts its negative
+        eigenvalues (saves refactorising).
     pivot_tol : float
         A pivot smaller than ``pivot_tol`` times the largest diagonal entry may
         hide an eigenvalue near zero (or a loss of accuracy), so the count is

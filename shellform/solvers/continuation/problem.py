@@ -24,7 +24,9 @@ from ..raised_cholesky import RaisedCholeskyFactor
 
 
 #: Most rows a tangent's diagonal is raised at for a Cholesky factor (and the most negative
-#: eigenvalues it is tried for); each failed attempt costs up to a Cholesky factorisation.
+#: eigenvalues it is tried for): each attempt that fails costs up to a Cholesky factorisation, and
+#: LDL^T takes over after at most this many. Through the star dome's path (up to seven negative
+#: eigenvalues) the raised factor served tangents with one and two.
 MAX_RAISED_ROWS = 3
 
 
@@ -156,9 +158,9 @@ class Problem:
         16,131 and 7.2 at 37,209; as fast from 759 up to the hemisphere's
         7,628), and where it succeeds the tangent has no negative eigenvalue.
         Where it fails, or a few negative eigenvalues are expected, Cholesky
-        with the failing rows' diagonal raised gives ``K``'s solves and
-        inertia (:class:`~shellform.solvers.raised_cholesky.RaisedCholeskyFactor`);
-        where that fails too, LDL^T. After a failure the tangents of the same
+        with the diagonal of a few rows raised gives ``K``'s solves and
+        inertia (:class:`~shellform.solvers.raised_cholesky.RaisedCholeskyFactor`,
+        :meth:`_cholesky`); where that fails too, LDL^T. After a failure the tangents of the same
         point's remaining corrector iterations skip the attempts that failed:
         past a limit point they would fail at each of them.
         """

@@ -19,8 +19,8 @@ import numpy as np
 
 from ...errors import ModelError
 from ..linear import CholeskyFactor, LDLFactor, SingularMatrixError
-from ..raised_cholesky import RaisedCholeskyFactor
 from ..mechanism import describe_soft_modes
+from ..raised_cholesky import RaisedCholeskyFactor
 from ..stability import DENSE_LIMIT, InertiaError, inertia, nearest_eigenvalue
 from ..step_bounds import FOLD_OVERSHOOT, fold_distance
 from .branches import switch_at
