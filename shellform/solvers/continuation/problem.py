@@ -30,6 +30,29 @@ from ..raised_cholesky import RaisedCholeskyFactor
 MAX_RAISED_ROWS = 3
 
 
+#: Least share of the soft direction's squared length the raised rows must carry. Measured on the
+#: path tangents next to limit points: 0.947 at the apex's vertical DOF of the lattice domes (the
+#: raised factor succeeds), 0.002-0.006 at the largest entry of the hemisphere's and 0.007-0.019 at
+#: its three largest (every attempt failed, 39 Cholesky factorisations lost on the n = 19 curve).
+MIN_RAISED_SHARE = 0.5
+
+
+def _rows_to_raise(soft) -> list[list[int]]:
+    """Row sets to try raising, by the largest entries of ``soft``: the fewest that carry
+    :data:`MIN_RAISED_SHARE` of its squared length, then one more each, up to :data:`MAX_RAISED_ROWS`;
+    none where even these many carry less."""
+    if soft is None or MAX_RAISED_ROWS == 0:
+        return []
+    w = np.asarray(soft, dtype=float) ** 2
+    total = float(np.sum(w))
+    order = np.argsort(-w)[:MAX_RAISED_ROWS]
+    share = np.cumsum(w[order]) / total if total > 0.0 else np.zeros(order.size)
+    if not np.isfinite(share[-1]) or share[-1] < MIN_RAISED_SHARE:
+        return []
+    first = int(np.searchsorted(share, MIN_RAISED_SHARE)) + 1
+    return [[int(i) for i in order[:k]] for k in range(first, order.size + 1)]
+
+
 class StepFailure(Exception):
     """A corrector did not converge (internal; triggers a cut-back).
 
@@ -86,6 +109,9 @@ class Problem:
         self.soft_direction = lambda: None
         #: the rows whose raised diagonal made the last indefinite tangent positive definite
         self._raised_rows = None
+        #: every raised attempt at some point failed: the tangents' negative modes are spread out
+        #: (the hemisphere's folds), and the attempts would cost a Cholesky factorisation each
+        self._raised_declined = False
         self._block = None
         if control == "load":
             if not np.any(self.f_ref != 0.0):
@@ -192,9 +218,10 @@ class Problem:
         event's location lie on both sides of it, and the raised factor counts
         either side), then the largest entries of the softest direction the
         tracer knows (the path tangent, along the critical mode next to a limit
-        point), one more after each failure: ``K + E B E^T`` is positive
-        definite only if the rows raised carry enough of every negative
-        eigenvalue's mode.
+        point; :func:`_rows_to_raise`): ``K + E B E^T`` is positive definite
+        only if the rows raised carry enough of every negative eigenvalue's
+        mode. Where every attempt at a point fails, the run goes on with LDL^T
+        alone.
         """
         expected = self.expected_negative()
         if expected < 0 or expected > MAX_RAISED_ROWS or self._raised_failed:
@@ -206,9 +233,9 @@ class Problem:
                 return F
             except NotPositiveDefiniteError:
                 self._cholesky_failed = True  # the analysis stays with the previous factor for the next attempt
-        soft = self.soft_direction()
-        order = [] if soft is None else [int(i) for i in np.argsort(-np.abs(soft))[:MAX_RAISED_ROWS]]
-        attempts = ([self._raised_rows] if self._raised_rows else []) + [order[:k] for k in range(1, len(order) + 1)]
+        if self._raised_declined:
+            return None
+        attempts = ([self._raised_rows] if self._raised_rows else []) + _rows_to_raise(self.soft_direction())
         tried = []
         for rows in attempts:
             if set(rows) in tried:
@@ -223,6 +250,7 @@ class Problem:
             self._chol_prev, self._raised_rows = F.cholesky, rows
             return F
         self._raised_failed, self._raised_rows = True, None
+        self._raised_declined = bool(tried)
         return None
 
     def new_point(self) -> None:
