@@ -133,11 +133,16 @@ class CholeskyFactor:
             ) from None
 
     @property
+    def alive(self) -> bool:
+        """Whether the factor can still solve (a later factorisation may have taken its storage)."""
+        return self._symbolic is not None and not self._stale
+
+    @property
     def pivots(self) -> np.ndarray:
         """The squares of the diagonal of ``L``: the pivots of ``A = L D L^T`` in the factor's ordering."""
         from cvxopt import cholmod
 
-        if self._symbolic is None or self._stale:
+        if not self.alive:
             raise SingularMatrixError("this Cholesky factor's storage was reused by a later factorisation")
         return np.array(cholmod.diag(self._symbolic)).ravel() ** 2
 

@@ -119,7 +119,7 @@ class RaisedCholeskyFactor:
     @property
     def alive(self) -> bool:
         """Whether the factor can still solve (a later factorisation may have taken ``M``'s storage)."""
-        return self.cholesky._symbolic is not None and not self.cholesky._stale
+        return self.cholesky.alive
 
     # -- solves --------------------------------------------------------------------
     def _raw_solve(self, b: np.ndarray) -> np.ndarray:

@@ -45,7 +45,9 @@ def _rows_to_raise(soft) -> list[list[int]]:
         return []
     w = np.asarray(soft, dtype=float) ** 2
     total = float(np.sum(w))
-    order = np.argsort(-w)[:MAX_RAISED_ROWS]
+    k = min(MAX_RAISED_ROWS, w.size)
+    top = np.argpartition(-w, k - 1)[:k]  # the k largest in O(n), then in order
+    order = top[np.argsort(-w[top], kind="stable")]
     share = np.cumsum(w[order]) / total if total > 0.0 else np.zeros(order.size)
     if not np.isfinite(share[-1]) or share[-1] < MIN_RAISED_SHARE:
         return []
