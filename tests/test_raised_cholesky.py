@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellform.solvers.factor_base import NotPositiveDefiniteError, SingularMatrixError
+from shellform.solvers.factor_base import NotPositiveDefiniteError
 from shellform.solvers.raised_cholesky import RaisedCholeskyFactor
 from shellform.solvers.stability import inertia
 
@@ -52,10 +52,7 @@ def test_rows_that_miss_a_negative_mode_leave_the_raised_matrix_indefinite():
 
 def test_a_singular_matrix_never_gives_a_trusted_count():
     A = chain_with_soft_modes(100, [0.0], [50])
-    try:
-        F = RaisedCholeskyFactor(A, [50])
-    except SingularMatrixError:
-        return  # S exactly singular
+    F = RaisedCholeskyFactor(A, [50])  # rounding leaves S nonzero, at the level of its cancellation
     assert F.min_pivot_ratio < 1e-12 and not F.trustworthy(1e-10)
 
 
